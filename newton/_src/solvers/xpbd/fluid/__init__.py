@@ -1,0 +1,219 @@
+# SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
+# SPDX-License-Identifier: Apache-2.0
+
+"""Position-based fluids inside :class:`~newton.solvers.SolverXPBD`.
+
+This module is the one place where the upstream solver is extended. :func:`activate` runs when
+``newton._src.solvers.xpbd`` is imported (through the startup hook, or when this module is
+imported directly) and adds to ``SolverXPBD``:
+
+- the ``fluid_*`` constructor keywords and matching properties;
+- a wrapped ``integrate_particles`` (build the fluid neighbourhood after prediction);
+- a wrapped ``_apply_particle_deltas`` (add the density correction once per iteration, after the
+  other particle constraints accumulated their Jacobi deltas);
+- a wrapped ``step`` (fluid-fluid pairs skipped by particle contacts, and after the step: viscosity,
+  vorticity confinement, non-finite recovery);
+- :meth:`fluid_diagnostics`.
+
+Solvers whose model has no fluid particle take none of these paths.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import importlib
+import inspect
+
+from .kernels import solve_particle_particle_contacts_skip_fluid_pairs
+from .solver_fluid import FluidConfig, FluidSolver, find_fluid_particles
+
+SUPPORTED_NEWTON_VERSION = "1.8.0"
+
+# private upstream names this extension relies on: (owner, attribute)
+_UPSTREAM_NAMES = (
+    ("SolverXPBD", "_apply_particle_deltas"),
+    ("SolverXPBD", "integrate_particles"),
+    ("SolverXPBD", "step"),
+    ("solver_module", "solve_particle_particle_contacts"),
+)
+
+_FLUID_KWARGS = {name: FluidConfig.__dataclass_fields__[name].default for name in FluidConfig.__dataclass_fields__}
+
+
+def check_upstream(xpbd_module) -> None:
+    """Raise ``RuntimeError`` unless every upstream name the extension patches exists.
+
+    Args:
+        xpbd_module: The ``newton._src.solvers.xpbd`` package.
+    """
+    import newton  # noqa: PLC0415
+
+    owners = {"SolverXPBD": xpbd_module.SolverXPBD, "solver_module": _solver_module(xpbd_module)}
+    missing = [f"{o}.{a}" for o, a in _UPSTREAM_NAMES if not hasattr(owners[o], a)]
+    if missing:
+        raise RuntimeError(
+            f"newton-fluid supports newton {SUPPORTED_NEWTON_VERSION}, found newton {newton.__version__}: "
+            f"upstream name(s) {', '.join(missing)} missing"
+        )
+
+
+def _solver_module(xpbd_module):
+    return importlib.import_module(xpbd_module.SolverXPBD.__module__)
+
+
+@contextlib.contextmanager
+def _fluid_particle_contacts(solver_module, model, fluid: FluidSolver):
+    """While a fluid solver steps: particle contacts skip fluid-fluid pairs, or are skipped when all particles are fluid."""
+    saved = (solver_module.solve_particle_particle_contacts, model.particle_grid, model.particle_max_radius)
+    solver_module.solve_particle_particle_contacts = solve_particle_particle_contacts_skip_fluid_pairs
+    if fluid.fluid_count == model.particle_count:
+        # no pair is left for the contact kernel: skip upstream's hash-grid build and query
+        model.particle_grid = None
+        model.particle_max_radius = 0.0
+    try:
+        yield
+    finally:
+        solver_module.solve_particle_particle_contacts, model.particle_grid, model.particle_max_radius = saved
+
+
+def _make_property(name: str, mutable: bool):
+    def fget(self):
+        return getattr(self._fluid_config, name)
+
+    def fset(self, value):
+        self._fluid_config.set(name, value)
+        if self._fluid is not None:
+            self._fluid.update_params()
+
+    doc = f"``{name}`` of the fluid solve (see the constructor)."
+    return property(fget, fset if mutable else None, doc=doc)
+
+
+def fluid_diagnostics(self, state) -> dict:
+    """Density and neighbourhood statistics of the fluid at ``state``.
+
+    Recomputes the neighbourhood and the poly6 density at ``state.particle_q`` (so it reads the
+    result of the last step, not a value from inside it) and synchronises with the device: call it
+    when you need the numbers, not in the hot loop. Also fills :attr:`fluid_density`.
+
+    Args:
+        state: The state to measure, usually the ``state_out`` of the last step.
+
+    Returns:
+        dict: ``active_particles``, ``rest_density`` [kg/m^3], ``mean_abs_density_error`` and
+        ``max_abs_density_error`` (of rho/rho0 - 1 over all fluid particles, surface included),
+        ``mean_compression`` and ``max_compression`` (of max(rho/rho0 - 1, 0)), ``neighbors_min``,
+        ``neighbors_mean``, ``neighbors_max``, ``neighbor_overflow`` (particles with more neighbours
+        than are stored), ``candidates_mean`` (particles examined per neighbourhood search) and
+        ``nonfinite_recovered`` (total count of recovered non-finite particles). Empty for a model
+        without fluid.
+    """
+    if self._fluid is None:
+        return {}
+    return self._fluid.diagnostics(state)
+
+
+def activate(xpbd_module) -> None:
+    """Extend ``xpbd_module.SolverXPBD`` (``newton._src.solvers.xpbd``) in place; idempotent."""
+    cls = xpbd_module.SolverXPBD
+    if getattr(cls, "_fluid_extension", False):
+        return
+    check_upstream(xpbd_module)
+    solver_module = _solver_module(xpbd_module)
+    upstream_init = cls.__init__
+    upstream_integrate = cls.integrate_particles
+    upstream_apply = cls._apply_particle_deltas
+    upstream_step = cls.step
+
+    @functools.wraps(upstream_init)
+    def __init__(self, model, *args, **kwargs):
+        config = FluidConfig(**{k: kwargs.pop(k) for k in _FLUID_KWARGS if k in kwargs})
+        upstream_init(self, model, *args, **kwargs)
+        self._fluid_config = config
+        self._fluid = None
+        fluid_particle = find_fluid_particles(model)
+        if len(fluid_particle):
+            if config.fluid_rest_distance is None:
+                raise ValueError(
+                    f"fluid_rest_distance=None is invalid: the model has {len(fluid_particle)} fluid particles, "
+                    "expected a particle spacing in (0, inf) [m]"
+                )
+            self._fluid = FluidSolver(model, config, fluid_particle)
+
+    def integrate_particles(self, model, state_in, state_out, dt):
+        upstream_integrate(self, model, state_in, state_out, dt)
+        if self._fluid is not None:
+            self._fluid.build_neighborhood(state_out.particle_q)
+
+    def _apply_particle_deltas(self, model, state_in, state_out, particle_deltas, dt):
+        if self._fluid is not None:
+            # the positions upstream applies the deltas to (it ping-pongs between the two states)
+            current = state_in.requires_grad or self._particle_delta_counter == 0
+            particle_q = state_out.particle_q if current else state_in.particle_q
+            self._fluid.solve_density(particle_q, particle_deltas)
+        return upstream_apply(self, model, state_in, state_out, particle_deltas, dt)
+
+    @functools.wraps(upstream_step)
+    def step(self, state_in, state_out, control, contacts, dt, **kwargs):
+        if self._fluid is None:
+            return upstream_step(self, state_in, state_out, control, contacts, dt, **kwargs)
+        with _fluid_particle_contacts(solver_module, self.model, self._fluid):
+            upstream_step(self, state_in, state_out, control, contacts, dt, **kwargs)
+        self._fluid.finish_step(state_out, dt)
+
+    sig = inspect.signature(upstream_init)
+    extra = [inspect.Parameter(k, inspect.Parameter.KEYWORD_ONLY, default=v) for k, v in _FLUID_KWARGS.items()]
+    __init__.__signature__ = sig.replace(parameters=[*sig.parameters.values(), *extra])
+    __init__.__doc__ = (upstream_init.__doc__ or "") + _FLUID_DOC
+
+    cls.__init__ = __init__
+    cls.integrate_particles = integrate_particles
+    cls._apply_particle_deltas = _apply_particle_deltas
+    cls.step = step
+    cls.fluid_diagnostics = fluid_diagnostics
+    cls.fluid_density = property(
+        lambda self: None if self._fluid is None else self._fluid.particle_density,
+        doc="Per-particle density [kg/m^3] at the state of the last :meth:`fluid_diagnostics` call "
+        "(``wp.array`` of ``particle_count``; 0 for non-fluid particles), or ``None`` without fluid.",
+    )
+    cls.fluid_nonfinite_count = property(
+        lambda self: None if self._fluid is None else self._fluid.nonfinite_count,
+        doc="Device counter (``wp.array`` of one int32) of fluid particles recovered from non-finite values.",
+    )
+    for name in _FLUID_KWARGS:
+        setattr(cls, name, _make_property(name, name in FluidConfig.MUTABLE))
+    cls._fluid_extension = True
+
+
+_FLUID_DOC = """
+        Fluid keywords (newton-fluid), for particles flagged :attr:`~newton.ParticleFlags.FLUID`:
+            fluid_rest_distance: Rest spacing of the fluid particles [m], > 0. Required when fluid particles exist.
+            fluid_smoothing_length: Kernel support radius h [m], in (rest distance, 4 x rest distance].
+                Defaults to 1.8 x ``fluid_rest_distance``.
+            fluid_rest_density: Rest density [kg/m^3], > 0. Defaults to the poly6 density of a cubic lattice at
+                the rest distance with the mean fluid particle mass, so such a lattice is exactly at rest.
+            fluid_cohesion: Akinci-style pair cohesion, in [0, 1]. Defaults to 0.
+            fluid_viscosity: Per-substep blend toward the neighbourhood velocity, in [0, 1]. Defaults to 0.
+            fluid_vorticity: Vorticity confinement strength [m/s], >= 0. Defaults to 0 (off).
+            fluid_relaxation: Scale of the density correction, in (0, 2]. Defaults to 1.
+            fluid_max_neighbors: Neighbours used per particle, in [0, 4096]; 0 uses the whole neighbourhood.
+            max_diffuse_particles: Capacity of diffuse (foam/spray) particles, >= 0; 0 is off.
+"""
+
+
+def _self_activate() -> None:
+    """Activate when imported without the startup hook (e.g. ``python -S``); a no-op when already active."""
+    import os  # noqa: PLC0415
+
+    if os.environ.get("NEWTON_FLUID_DISABLE"):
+        return
+    flags = importlib.import_module("newton._src.geometry.flags")
+    if not hasattr(flags.ParticleFlags, "FLUID"):
+        import _newton_fluid_hook  # noqa: PLC0415
+
+        _newton_fluid_hook._activate_flags(flags)
+    activate(importlib.import_module("newton._src.solvers.xpbd"))
+
+
+_self_activate()

@@ -1,0 +1,430 @@
+# SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
+# SPDX-License-Identifier: Apache-2.0
+
+"""Warp kernels of the position-based fluid (PBF) solve.
+
+All per-particle passes run over the fluid particles in *sorted slot* order (see
+:mod:`.neighbors`): slot ``i`` holds particle ``sorted_particle[i]`` (``-1`` for a slot
+whose particle is inactive or non-finite), its neighbours are slots too, and the
+current positions and masses of all slots are gathered once per pass into
+``sorted_xm`` (``xyz`` = position [m], ``w`` = mass [kg]) so that neighbour reads are
+coherent.
+
+Scalar parameters are read from a one-element :class:`FluidParams` array, not passed
+by value, so that changing them between steps also changes a captured CUDA graph.
+
+References:
+    - M. Macklin, M. Müller. Position Based Fluids. ACM TOG 32(4), 2013.
+    - M. Müller, D. Charypar, M. Gross. Particle-based fluid simulation for interactive
+      applications. SCA 2003 (poly6 and spiky kernels).
+    - N. Akinci, G. Akinci, M. Teschner. Versatile surface tension and adhesion for SPH
+      fluids. ACM TOG 32(6), 2013 (cohesion spline).
+"""
+
+import warp as wp
+
+from ....geometry import ParticleFlags
+
+# |r| below this fraction of h counts as coincident: the direction r/|r| is not usable there.
+COINCIDENT_FRACTION = 1.0e-5
+
+
+@wp.struct
+class FluidParams:
+    """Scalar parameters of the fluid solve, kept on the device (see :meth:`FluidSolver.update_params`)."""
+
+    h: float  # smoothing length [m]
+    h2: float
+    poly6: float  # 315 / (64 pi h^9)
+    spiky_grad: float  # -45 / (pi h^6)
+    rest_density: float  # [kg/m^3]
+    inv_rest_density: float
+    rest_distance: float  # [m]
+    epsilon: float  # regulariser of the lambda denominator [1/m^2]
+    relaxation: float
+    max_correction: float  # bound of one iteration's density correction [m]
+    cohesion: float  # per-iteration cohesion displacement scale [m]
+    cohesion_zero: float  # Akinci spline argument at which the pair bias changes sign [m]
+    viscosity: float  # [0, 1]
+    vorticity: float  # confinement strength [m/s]
+
+
+@wp.func
+def poly6(r2: float, p: FluidParams):
+    """Poly6 kernel W(r) for ``r2 = |r|^2 < h^2`` [1/m^3]."""
+    d = p.h2 - r2
+    return p.poly6 * d * d * d
+
+
+@wp.func
+def coincident_direction(pi: int, pj: int):
+    """Deterministic unit direction for a coincident pair, antisymmetric in (pi, pj)."""
+    lo = wp.min(pi, pj)
+    hi = wp.max(pi, pj)
+    state = wp.rand_init(lo * 1103515245 + 12345, hi)
+    d = wp.sample_unit_sphere_surface(state)
+    if pi > pj:
+        d = -d
+    return d
+
+
+@wp.func
+def spiky_gradient(r: wp.vec3, r2: float, pi: int, pj: int, p: FluidParams):
+    """Gradient of the spiky kernel w.r.t. ``x_i`` for ``r = x_i - x_j`` [1/m^4]."""
+    dist = wp.sqrt(r2)
+    if dist < COINCIDENT_FRACTION * p.h:
+        n = coincident_direction(pi, pj)
+    else:
+        n = r / dist
+    d = p.h - dist
+    return n * (p.spiky_grad * d * d)
+
+
+@wp.func
+def akinci_cohesion(dist: float, p: FluidParams):
+    """Akinci's cohesion spline normalised to a peak of 1, its sign change moved to the rest distance.
+
+    The argument is remapped piecewise linearly so that ``dist = rest_distance`` lands on the
+    spline's own zero (``cohesion_zero``) and ``dist = h`` on ``h``: pairs closer than the rest
+    distance repel, pairs between rest distance and ``h`` attract. Positive means attraction.
+    """
+    h = p.h
+    d0 = p.rest_distance
+    if dist < d0:
+        s = dist * (p.cohesion_zero / d0)
+    else:
+        s = p.cohesion_zero + (dist - d0) * (h - p.cohesion_zero) / (h - d0)
+    a = (h - s) * (h - s) * (h - s) * s * s * s
+    h6 = h * h * h * h * h * h
+    if 2.0 * s > h:
+        c = a
+    else:
+        c = 2.0 * a - h6 / 64.0
+    return c * (64.0 / h6)
+
+
+@wp.func
+def fluid_neighbor(neighbors: wp.array[wp.int32], slot_count: int, i: int, k: int):
+    """Slot of the ``k``-th neighbour of slot ``i`` (lists are stored transposed for coalescing)."""
+    return neighbors[k * slot_count + i]
+
+
+@wp.kernel
+def gather_fluid_positions(
+    sorted_particle: wp.array[wp.int32],
+    particle_q: wp.array[wp.vec3],
+    particle_mass: wp.array[float],
+    sorted_xm: wp.array[wp.vec4],
+):
+    i = wp.tid()
+    pi = sorted_particle[i]
+    if pi < 0:
+        return
+    x = particle_q[pi]
+    sorted_xm[i] = wp.vec4(x[0], x[1], x[2], particle_mass[pi])
+
+
+@wp.kernel
+def gather_fluid_state(
+    sorted_particle: wp.array[wp.int32],
+    particle_q: wp.array[wp.vec3],
+    particle_qd: wp.array[wp.vec3],
+    particle_mass: wp.array[float],
+    sorted_xm: wp.array[wp.vec4],
+    sorted_v: wp.array[wp.vec3],
+):
+    i = wp.tid()
+    pi = sorted_particle[i]
+    if pi < 0:
+        return
+    x = particle_q[pi]
+    sorted_xm[i] = wp.vec4(x[0], x[1], x[2], particle_mass[pi])
+    sorted_v[i] = particle_qd[pi]
+
+
+@wp.kernel
+def compute_fluid_density_lambda(
+    params: wp.array[FluidParams],
+    sorted_particle: wp.array[wp.int32],
+    sorted_xm: wp.array[wp.vec4],
+    neighbors: wp.array[wp.int32],
+    neighbor_count: wp.array[wp.int32],
+    max_neighbors: int,
+    # outputs
+    density: wp.array[float],
+    lambdas: wp.array[float],
+):
+    """Poly6 density and the Jacobi multiplier of the unilateral constraint C = max(rho/rho0 - 1, 0)."""
+    i = wp.tid()
+    pi = sorted_particle[i]
+    if pi < 0:
+        return
+    p = params[0]
+    slot_count = sorted_particle.shape[0]
+    xi4 = sorted_xm[i]
+    xi = wp.vec3(xi4[0], xi4[1], xi4[2])
+    rho = xi4[3] * poly6(0.0, p)
+    grad_i = wp.vec3(0.0)
+    grad_sq = float(0.0)
+    count = wp.min(neighbor_count[i], max_neighbors)
+    for k in range(count):
+        j = fluid_neighbor(neighbors, slot_count, i, k)
+        xj4 = sorted_xm[j]
+        r = xi - wp.vec3(xj4[0], xj4[1], xj4[2])
+        r2 = wp.dot(r, r)
+        if r2 < p.h2:
+            rho += xj4[3] * poly6(r2, p)
+            g = spiky_gradient(r, r2, pi, sorted_particle[j], p) * (xj4[3] * p.inv_rest_density)
+            grad_i += g
+            grad_sq += wp.dot(g, g)
+    density[i] = rho
+    c = wp.max(rho * p.inv_rest_density - 1.0, 0.0)
+    lambdas[i] = -c / (grad_sq + wp.dot(grad_i, grad_i) + p.epsilon)
+
+
+@wp.kernel
+def apply_fluid_density_correction(
+    params: wp.array[FluidParams],
+    sorted_particle: wp.array[wp.int32],
+    sorted_xm: wp.array[wp.vec4],
+    neighbors: wp.array[wp.int32],
+    neighbor_count: wp.array[wp.int32],
+    max_neighbors: int,
+    lambdas: wp.array[float],
+    particle_inv_mass: wp.array[float],
+    # outputs
+    particle_deltas: wp.array[wp.vec3],
+):
+    """Add the density correction and the cohesion bias of slot ``i`` to its particle's Jacobi delta."""
+    i = wp.tid()
+    pi = sorted_particle[i]
+    if pi < 0 or particle_inv_mass[pi] == 0.0:
+        return
+    p = params[0]
+    slot_count = sorted_particle.shape[0]
+    xi4 = sorted_xm[i]
+    xi = wp.vec3(xi4[0], xi4[1], xi4[2])
+    lam_i = lambdas[i]
+    dx = wp.vec3(0.0)
+    coh = wp.vec3(0.0)
+    count = wp.min(neighbor_count[i], max_neighbors)
+    for k in range(count):
+        j = fluid_neighbor(neighbors, slot_count, i, k)
+        xj4 = sorted_xm[j]
+        r = xi - wp.vec3(xj4[0], xj4[1], xj4[2])
+        r2 = wp.dot(r, r)
+        if r2 < p.h2:
+            pj = sorted_particle[j]
+            vol_j = xj4[3] * p.inv_rest_density
+            dx += spiky_gradient(r, r2, pi, pj, p) * ((lam_i + lambdas[j]) * vol_j)
+            if p.cohesion > 0.0:
+                dist = wp.sqrt(r2)
+                if dist < COINCIDENT_FRACTION * p.h:
+                    n = coincident_direction(pi, pj)
+                else:
+                    n = r / dist
+                # mass-weighted so that the pair's momentum is unchanged
+                w = 2.0 * xj4[3] / (xi4[3] + xj4[3])
+                coh -= n * (w * akinci_cohesion(dist, p))
+    dx *= p.relaxation
+    dx_len = wp.length(dx)
+    if dx_len > p.max_correction:
+        dx *= p.max_correction / dx_len
+    if p.cohesion > 0.0:
+        # the bias is bounded so a crowded neighbourhood cannot pull harder than one rest spacing allows
+        coh *= p.cohesion
+        coh_len = wp.length(coh)
+        coh_max = 4.0 * p.cohesion
+        if coh_len > coh_max:
+            coh *= coh_max / coh_len
+        dx += coh
+    particle_deltas[pi] = particle_deltas[pi] + dx
+
+
+@wp.kernel
+def apply_fluid_viscosity(
+    params: wp.array[FluidParams],
+    sorted_particle: wp.array[wp.int32],
+    sorted_xm: wp.array[wp.vec4],
+    sorted_v: wp.array[wp.vec3],
+    neighbors: wp.array[wp.int32],
+    neighbor_count: wp.array[wp.int32],
+    max_neighbors: int,
+    density: wp.array[float],
+    compute_vorticity: int,
+    # outputs
+    particle_qd: wp.array[wp.vec3],
+    vorticity: wp.array[wp.vec3],
+):
+    """Blend each velocity toward the mass- and density-weighted (Shepard) neighbourhood velocity.
+
+    ``v_i <- v_i + nu (sum_j V_j W_ij v_j / sum_j V_j W_ij - v_i)`` with ``V_j = m_j / rho_j``, the
+    sums including ``j = i``. When ``compute_vorticity`` is set, the same neighbour loop also
+    estimates the vorticity ``omega_i = sum_j V_j (v_j - v_i) x grad W_ij`` for the confinement pass.
+    """
+    i = wp.tid()
+    pi = sorted_particle[i]
+    if pi < 0:
+        return
+    p = params[0]
+    slot_count = sorted_particle.shape[0]
+    xi4 = sorted_xm[i]
+    xi = wp.vec3(xi4[0], xi4[1], xi4[2])
+    vi = sorted_v[i]
+    w_self = xi4[3] / wp.max(density[i], 1.0e-6) * poly6(0.0, p)
+    num = vi * w_self
+    den = w_self
+    omega = wp.vec3(0.0)
+    count = wp.min(neighbor_count[i], max_neighbors)
+    for k in range(count):
+        j = fluid_neighbor(neighbors, slot_count, i, k)
+        xj4 = sorted_xm[j]
+        r = xi - wp.vec3(xj4[0], xj4[1], xj4[2])
+        r2 = wp.dot(r, r)
+        if r2 < p.h2:
+            vol_j = xj4[3] / wp.max(density[j], 1.0e-6)
+            w = vol_j * poly6(r2, p)
+            vj = sorted_v[j]
+            num += vj * w
+            den += w
+            if compute_vorticity != 0:
+                omega += wp.cross(vj - vi, spiky_gradient(r, r2, pi, sorted_particle[j], p)) * vol_j
+    if p.viscosity > 0.0:
+        particle_qd[pi] = vi + (num / den - vi) * p.viscosity
+    if compute_vorticity != 0:
+        vorticity[i] = omega
+
+
+@wp.kernel
+def apply_vorticity_confinement(
+    params: wp.array[FluidParams],
+    sorted_particle: wp.array[wp.int32],
+    sorted_xm: wp.array[wp.vec4],
+    neighbors: wp.array[wp.int32],
+    neighbor_count: wp.array[wp.int32],
+    max_neighbors: int,
+    density: wp.array[float],
+    vorticity: wp.array[wp.vec3],
+    dt: float,
+    # outputs
+    particle_qd: wp.array[wp.vec3],
+):
+    """Vorticity confinement: ``v_i += dt * eps * (N x omega_i)`` with ``N`` the normalised gradient of ``|omega|``."""
+    i = wp.tid()
+    pi = sorted_particle[i]
+    if pi < 0:
+        return
+    p = params[0]
+    slot_count = sorted_particle.shape[0]
+    xi4 = sorted_xm[i]
+    xi = wp.vec3(xi4[0], xi4[1], xi4[2])
+    eta = wp.vec3(0.0)
+    count = wp.min(neighbor_count[i], max_neighbors)
+    for k in range(count):
+        j = fluid_neighbor(neighbors, slot_count, i, k)
+        xj4 = sorted_xm[j]
+        r = xi - wp.vec3(xj4[0], xj4[1], xj4[2])
+        r2 = wp.dot(r, r)
+        if r2 < p.h2:
+            vol_j = xj4[3] / wp.max(density[j], 1.0e-6)
+            eta += spiky_gradient(r, r2, pi, sorted_particle[j], p) * (vol_j * wp.length(vorticity[j]))
+    # grad W points from j to i, so -eta points toward larger |omega|
+    eta_len = wp.length(eta)
+    if eta_len > 1.0e-9:
+        n = -eta / eta_len
+        particle_qd[pi] = particle_qd[pi] + wp.cross(n, vorticity[i]) * (p.vorticity * dt)
+
+
+@wp.kernel
+def recover_nonfinite_fluid(
+    fluid_particle: wp.array[wp.int32],
+    particle_flags: wp.array[wp.int32],
+    # in/out
+    particle_q: wp.array[wp.vec3],
+    particle_qd: wp.array[wp.vec3],
+    last_finite_q: wp.array[wp.vec3],
+    nonfinite_count: wp.array[wp.int32],
+):
+    """Restore non-finite fluid particles to their last finite position at rest, and count them."""
+    k = wp.tid()
+    pi = fluid_particle[k]
+    if (particle_flags[pi] & ParticleFlags.ACTIVE) == 0:
+        return
+    x = particle_q[pi]
+    v = particle_qd[pi]
+    if wp.isfinite(x) and wp.isfinite(v):
+        last_finite_q[k] = x
+    else:
+        particle_q[pi] = last_finite_q[k]
+        particle_qd[pi] = wp.vec3(0.0)
+        wp.atomic_add(nonfinite_count, 0, 1)
+
+
+@wp.kernel
+def solve_particle_particle_contacts_skip_fluid_pairs(
+    grid: wp.uint64,
+    particle_x: wp.array[wp.vec3],
+    particle_v: wp.array[wp.vec3],
+    particle_invmass: wp.array[float],
+    particle_radius: wp.array[float],
+    particle_flags: wp.array[wp.int32],
+    k_mu: float,
+    k_cohesion: float,
+    max_radius: float,
+    dt: float,
+    relaxation: float,
+    # outputs
+    deltas: wp.array[wp.vec3],
+):
+    """Particle contacts for models with fluid: a pair of two fluid particles is left to the density constraint.
+
+    Same launch signature as :func:`newton._src.solvers.xpbd.kernels.solve_particle_particle_contacts`
+    (it is swapped in only while a fluid solver steps). Every other pair gets a position-level
+    non-penetration correction split by inverse mass, with Coulomb friction on the tangential
+    relative displacement of the substep.
+    """
+    tid = wp.tid()
+    i = wp.hash_grid_point_id(grid, tid)
+    if i == -1:
+        return
+    flags_i = particle_flags[i]
+    if (flags_i & ParticleFlags.ACTIVE) == 0:
+        return
+    fluid_i = (flags_i & ParticleFlags.FLUID) != 0
+    proxy_i = (flags_i & ParticleFlags.PROXY) != 0
+    xi = particle_x[i]
+    ri = particle_radius[i]
+    wi = particle_invmass[i]
+    if wi == 0.0:
+        return
+    correction = wp.vec3(0.0)
+    query = wp.hash_grid_query(grid, xi, ri + max_radius + k_cohesion)
+    j = int(0)
+    while wp.hash_grid_query_next(query, j):
+        if j == i:
+            continue
+        flags_j = particle_flags[j]
+        if (flags_j & ParticleFlags.ACTIVE) == 0:
+            continue
+        if fluid_i and (flags_j & ParticleFlags.FLUID) != 0:
+            continue
+        if proxy_i and ((flags_j & ParticleFlags.PROXY) != 0 or particle_invmass[j] == 0.0):
+            continue
+        offset = xi - particle_x[j]
+        dist = wp.length(offset)
+        gap = dist - ri - particle_radius[j]
+        w_sum = wi + particle_invmass[j]
+        if gap > k_cohesion or dist == 0.0 or w_sum == 0.0:
+            continue
+        n = offset / dist
+        # normal: close the gap, this particle taking its inverse-mass share
+        push = -gap * n
+        # friction: undo tangential relative motion of this substep, up to mu times the normal push
+        v_rel = particle_v[i] - particle_v[j]
+        slip = (v_rel - n * wp.dot(n, v_rel)) * dt
+        slip_len = wp.length(slip)
+        if slip_len > 0.0:
+            limit = k_mu * wp.abs(gap)
+            push -= slip * (wp.min(slip_len, limit) / slip_len)
+        correction += push / w_sum
+    wp.atomic_add(deltas, i, correction * (wi * relaxation))

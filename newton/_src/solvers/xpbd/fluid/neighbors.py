@@ -1,0 +1,259 @@
+# SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
+# SPDX-License-Identifier: Apache-2.0
+
+"""Fluid neighbourhood search: sort fluid particles by (world, cell) and build per-slot neighbour lists.
+
+Once per substep, after prediction:
+
+1. every fluid particle gets a key: a hash of its world index and its cell (cell edge = smoothing
+   length ``h``) in a table of ``2^bits`` entries; inactive or non-finite particles get the
+   sentinel ``2^bits`` and sort last;
+2. keys are radix-sorted (only ``bits + 1`` bits), so particles of one cell of one world are
+   contiguous, and the cell ranges are marked in the table;
+3. positions, masses and worlds are gathered into slot order; each slot then scans the 27
+   cells around it and keeps the slots of the same world closer than ``h``.
+
+Because the world index is part of the hash, worlds that overlap in space (``replicate`` with no
+spacing) fall into different table entries: each particle only scans candidates of its own world.
+A candidate is accepted only from the cell it really lies in, so a hash collision between two
+of the 27 cells cannot list a neighbour twice.
+"""
+
+import numpy as np
+import warp as wp
+
+from ....geometry import ParticleFlags
+
+# sentinel world index of a slot with no particle; real world indices are >= -1
+_NO_WORLD = -2
+
+
+@wp.func
+def fluid_cell_hash(cx: int, cy: int, cz: int, world: int, mask: int):
+    h = wp.uint32(cx) * wp.uint32(73856093)
+    h = h ^ (wp.uint32(cy) * wp.uint32(19349663))
+    h = h ^ (wp.uint32(cz) * wp.uint32(83492791))
+    h = h ^ (wp.uint32(world + 2) * wp.uint32(50331653))
+    return wp.int32(h & wp.uint32(mask))
+
+
+@wp.func
+def fluid_cell(x: wp.vec3, inv_cell: float):
+    return wp.vec3i(
+        wp.int32(wp.floor(x[0] * inv_cell)), wp.int32(wp.floor(x[1] * inv_cell)), wp.int32(wp.floor(x[2] * inv_cell))
+    )
+
+
+@wp.kernel
+def compute_fluid_cell_keys(
+    fluid_particle: wp.array[wp.int32],
+    particle_q: wp.array[wp.vec3],
+    particle_flags: wp.array[wp.int32],
+    particle_world: wp.array[wp.int32],
+    inv_cell: float,
+    mask: int,
+    # outputs
+    keys: wp.array[wp.int32],
+    values: wp.array[wp.int32],
+):
+    k = wp.tid()
+    pi = fluid_particle[k]
+    x = particle_q[pi]
+    key = mask + 1
+    # a cell index must fit in int32; farther particles are left out of the fluid solve this substep
+    if (particle_flags[pi] & ParticleFlags.ACTIVE) != 0 and wp.isfinite(x) and wp.length(x) * inv_cell < 1.0e9:
+        c = fluid_cell(x, inv_cell)
+        key = fluid_cell_hash(c[0], c[1], c[2], particle_world[pi], mask)
+    keys[k] = key
+    values[k] = k
+
+
+@wp.kernel
+def mark_fluid_cell_ranges(
+    keys: wp.array[wp.int32],
+    slot_count: int,
+    mask: int,
+    # outputs
+    cell_start: wp.array[wp.int32],
+    cell_end: wp.array[wp.int32],
+):
+    i = wp.tid()
+    key = keys[i]
+    if key > mask:
+        return
+    if i == 0 or keys[i - 1] != key:
+        cell_start[key] = i
+    if i == slot_count - 1 or keys[i + 1] != key:
+        cell_end[key] = i + 1
+
+
+@wp.kernel
+def gather_fluid_slots(
+    keys: wp.array[wp.int32],
+    values: wp.array[wp.int32],
+    fluid_particle: wp.array[wp.int32],
+    particle_q: wp.array[wp.vec3],
+    particle_mass: wp.array[float],
+    particle_world: wp.array[wp.int32],
+    mask: int,
+    # outputs
+    sorted_particle: wp.array[wp.int32],
+    sorted_xm: wp.array[wp.vec4],
+    sorted_world: wp.array[wp.int32],
+):
+    i = wp.tid()
+    if keys[i] > mask:
+        sorted_particle[i] = -1
+        sorted_world[i] = _NO_WORLD
+        return
+    pi = fluid_particle[values[i]]
+    x = particle_q[pi]
+    sorted_particle[i] = pi
+    sorted_xm[i] = wp.vec4(x[0], x[1], x[2], particle_mass[pi])
+    sorted_world[i] = particle_world[pi]
+
+
+@wp.kernel
+def build_fluid_neighbor_lists(
+    sorted_xm: wp.array[wp.vec4],
+    sorted_world: wp.array[wp.int32],
+    cell_start: wp.array[wp.int32],
+    cell_end: wp.array[wp.int32],
+    h: float,
+    inv_cell: float,
+    mask: int,
+    capacity: int,
+    stop_at: int,
+    # outputs
+    neighbors: wp.array[wp.int32],
+    neighbor_count: wp.array[wp.int32],
+    candidate_count: wp.array[wp.int32],
+):
+    """List the slots within ``h`` of slot ``i`` (same world), stored transposed: ``neighbors[k * n + i]``.
+
+    ``neighbor_count`` receives the number found, which exceeds ``capacity`` when the list overflowed
+    (only the first ``capacity`` are stored). The scan stops once ``stop_at`` neighbours are found.
+    """
+    i = wp.tid()
+    slot_count = sorted_world.shape[0]
+    world = sorted_world[i]
+    if world == _NO_WORLD:
+        neighbor_count[i] = 0
+        candidate_count[i] = 0
+        return
+    xi4 = sorted_xm[i]
+    xi = wp.vec3(xi4[0], xi4[1], xi4[2])
+    ci = fluid_cell(xi, inv_cell)
+    h2 = h * h
+    count = int(0)
+    candidates = int(0)
+    for dz in range(-1, 2):
+        for dy in range(-1, 2):
+            for dx in range(-1, 2):
+                if count >= stop_at:
+                    continue
+                c = wp.vec3i(ci[0] + dx, ci[1] + dy, ci[2] + dz)
+                key = fluid_cell_hash(c[0], c[1], c[2], world, mask)
+                start = cell_start[key]
+                end = cell_end[key]
+                for j in range(start, end):
+                    if count >= stop_at:
+                        break
+                    candidates += 1
+                    if j == i or sorted_world[j] != world:
+                        continue
+                    xj4 = sorted_xm[j]
+                    xj = wp.vec3(xj4[0], xj4[1], xj4[2])
+                    r = xi - xj
+                    if wp.dot(r, r) >= h2:
+                        continue
+                    cj = fluid_cell(xj, inv_cell)
+                    if cj[0] != c[0] or cj[1] != c[1] or cj[2] != c[2]:
+                        continue
+                    if count < capacity:
+                        neighbors[count * slot_count + i] = j
+                    count += 1
+    neighbor_count[i] = count
+    candidate_count[i] = candidates
+
+
+class FluidNeighborSearch:
+    """Preallocated sort and neighbour-list buffers for ``fluid_count`` particles.
+
+    Args:
+        fluid_particle: Particle indices of the fluid particles, shape ``(fluid_count,)``.
+        smoothing_length: Kernel support radius ``h`` [m]; also the cell edge.
+        capacity: Neighbours stored per particle.
+        capped: If ``True`` the scan stops at ``capacity`` neighbours (bounded work); otherwise it
+            counts the whole neighbourhood and reports overflow through :attr:`neighbor_count`.
+    """
+
+    def __init__(self, fluid_particle: wp.array, smoothing_length: float, capacity: int, capped: bool):
+        device = fluid_particle.device
+        n = fluid_particle.shape[0]
+        self.fluid_particle = fluid_particle
+        self.slot_count = n
+        self.smoothing_length = float(smoothing_length)
+        self.inv_cell = 1.0 / self.smoothing_length
+        self.capacity = int(capacity)
+        self.stop_at = self.capacity if capped else np.iinfo(np.int32).max
+        self.table_bits = max(6, int(np.ceil(np.log2(max(2 * n, 2)))))
+        self.mask = (1 << self.table_bits) - 1
+        with wp.ScopedDevice(device):
+            # radix sort needs room for 2x the keys
+            self.keys = wp.zeros(2 * n, dtype=wp.int32)
+            self.values = wp.zeros(2 * n, dtype=wp.int32)
+            self.cell_start = wp.zeros(self.mask + 1, dtype=wp.int32)
+            self.cell_end = wp.zeros(self.mask + 1, dtype=wp.int32)
+            self.sorted_particle = wp.full(n, -1, dtype=wp.int32)
+            self.sorted_xm = wp.zeros(n, dtype=wp.vec4)
+            self.sorted_world = wp.full(n, _NO_WORLD, dtype=wp.int32)
+            self.neighbors = wp.zeros(self.capacity * n, dtype=wp.int32)
+            self.neighbor_count = wp.zeros(n, dtype=wp.int32)
+            self.candidate_count = wp.zeros(n, dtype=wp.int32)
+
+    def build(self, particle_q: wp.array, particle_mass: wp.array, particle_flags: wp.array, particle_world: wp.array):
+        """Sort the fluid particles at ``particle_q`` and rebuild all neighbour lists (no allocation, no sync)."""
+        n = self.slot_count
+        device = particle_q.device
+        wp.launch(
+            compute_fluid_cell_keys,
+            dim=n,
+            inputs=[self.fluid_particle, particle_q, particle_flags, particle_world, self.inv_cell, self.mask],
+            outputs=[self.keys, self.values],
+            device=device,
+        )
+        wp.utils.radix_sort_pairs(self.keys, self.values, n, end_bit=self.table_bits + 1)
+        self.cell_start.zero_()
+        self.cell_end.zero_()
+        wp.launch(
+            mark_fluid_cell_ranges,
+            dim=n,
+            inputs=[self.keys, n, self.mask],
+            outputs=[self.cell_start, self.cell_end],
+            device=device,
+        )
+        wp.launch(
+            gather_fluid_slots,
+            dim=n,
+            inputs=[self.keys, self.values, self.fluid_particle, particle_q, particle_mass, particle_world, self.mask],
+            outputs=[self.sorted_particle, self.sorted_xm, self.sorted_world],
+            device=device,
+        )
+        wp.launch(
+            build_fluid_neighbor_lists,
+            dim=n,
+            inputs=[
+                self.sorted_xm,
+                self.sorted_world,
+                self.cell_start,
+                self.cell_end,
+                self.smoothing_length,
+                self.inv_cell,
+                self.mask,
+                self.capacity,
+                self.stop_at,
+            ],
+            outputs=[self.neighbors, self.neighbor_count, self.candidate_count],
+            device=device,
+        )

@@ -1,0 +1,383 @@
+# SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
+# SPDX-License-Identifier: Apache-2.0
+
+"""The fluid part of a :class:`~newton.solvers.SolverXPBD`: configuration, buffers and the per-substep passes.
+
+:class:`FluidConfig` validates the ``fluid_*`` keywords. :class:`FluidSolver` owns every device
+buffer of the fluid solve (allocated once, at construction) and is driven from three points of
+the upstream step (see :mod:`newton._src.solvers.xpbd.fluid`): after prediction
+(:meth:`FluidSolver.build_neighborhood`), once per iteration before the particle deltas are
+applied (:meth:`FluidSolver.solve_density`) and after the step (:meth:`FluidSolver.finish_step`).
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from dataclasses import dataclass
+
+import numpy as np
+import warp as wp
+
+from ....geometry import ParticleFlags
+from .kernels import (
+    FluidParams,
+    apply_fluid_density_correction,
+    apply_fluid_viscosity,
+    apply_vorticity_confinement,
+    compute_fluid_density_lambda,
+    gather_fluid_positions,
+    gather_fluid_state,
+    recover_nonfinite_fluid,
+)
+from .neighbors import FluidNeighborSearch
+
+# smoothing length h = DEFAULT_SMOOTHING_RATIO * rest distance unless given
+DEFAULT_SMOOTHING_RATIO = 1.8
+# one iteration moves a particle by at most this fraction of the rest distance
+MAX_CORRECTION_FRACTION = 0.5
+# lambda regulariser relative to sum |grad C|^2 of the rest lattice (constraint softening ~1e-3)
+EPSILON_RELATIVE = 1.0e-3
+# cohesion 1 moves a surface particle by at most ~this fraction of the rest distance per iteration
+COHESION_DISPLACEMENT = 0.005
+# neighbours stored per particle for fluid_max_neighbors=0, as a multiple of the rest-lattice count
+FULL_NEIGHBOR_FACTOR = 4
+# zero of Akinci's cohesion spline, as a fraction of h: 2 (1-u)^3 u^3 = 1/64
+AKINCI_ZERO = 0.5 * (1.0 - math.sqrt(1.0 - 4.0 * (1.0 / 128.0) ** (1.0 / 3.0)))
+
+
+def _real(name: str, value, lo: float, hi: float = math.inf, lo_open: bool = False, hi_open: bool = False) -> float:
+    """Return ``value`` as float, or raise ``ValueError`` naming the argument, the value and the valid range."""
+    lb = "(" if lo_open else "["
+    rb = ")" if hi_open or hi == math.inf else "]"
+    valid = f"{lb}{lo:g}, {'inf' if hi == math.inf else f'{hi:g}'}{rb}"
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(float(value)):
+        raise ValueError(f"{name}={value!r} is invalid: expected a finite number in {valid}")
+    v = float(value)
+    if v < lo or (lo_open and v == lo) or v > hi or (hi_open and v == hi):
+        raise ValueError(f"{name}={value!r} is out of range: expected a value in {valid}")
+    return v
+
+
+def _count(name: str, value, hi: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not 0 <= int(value) <= hi:
+        raise ValueError(f"{name}={value!r} is invalid: expected an integer in [0, {hi}]")
+    return int(value)
+
+
+@dataclass
+class FluidConfig:
+    """Validated fluid parameters of one solver (see :class:`~newton.solvers.SolverXPBD` for their meaning)."""
+
+    fluid_rest_distance: float | None = None
+    fluid_smoothing_length: float | None = None
+    fluid_rest_density: float | None = None
+    fluid_cohesion: float = 0.0
+    fluid_viscosity: float = 0.0
+    fluid_vorticity: float = 0.0
+    fluid_relaxation: float = 1.0
+    fluid_max_neighbors: int = 0
+    max_diffuse_particles: int = 0
+
+    #: parameters that may change after construction (they live on the device)
+    MUTABLE = ("fluid_rest_density", "fluid_cohesion", "fluid_viscosity", "fluid_vorticity", "fluid_relaxation")
+
+    def __post_init__(self):
+        if self.fluid_rest_distance is not None:
+            self.fluid_rest_distance = _real("fluid_rest_distance", self.fluid_rest_distance, 0.0, lo_open=True)
+            d = self.fluid_rest_distance
+            if self.fluid_smoothing_length is None:
+                self.fluid_smoothing_length = DEFAULT_SMOOTHING_RATIO * d
+            self.fluid_smoothing_length = _real(
+                "fluid_smoothing_length", self.fluid_smoothing_length, d, 4.0 * d, lo_open=True
+            )
+        elif self.fluid_smoothing_length is not None:
+            self.fluid_smoothing_length = _real("fluid_smoothing_length", self.fluid_smoothing_length, 0.0, lo_open=True)
+        for name in self.MUTABLE:
+            self.set(name, getattr(self, name))
+        self.fluid_max_neighbors = _count("fluid_max_neighbors", self.fluid_max_neighbors, 4096)
+        self.max_diffuse_particles = _count("max_diffuse_particles", self.max_diffuse_particles, 2**31 - 1)
+
+    def set(self, name: str, value) -> None:
+        """Validate and store one mutable parameter."""
+        if name == "fluid_rest_density":
+            v = None if value is None else _real(name, value, 0.0, lo_open=True)
+        elif name in ("fluid_cohesion", "fluid_viscosity"):
+            v = _real(name, value, 0.0, 1.0)
+        elif name == "fluid_vorticity":
+            v = _real(name, value, 0.0)
+        elif name == "fluid_relaxation":
+            v = _real(name, value, 0.0, 2.0, lo_open=True)
+        else:
+            raise AttributeError(f"{name} cannot be changed after the solver is created")
+        setattr(self, name, v)
+
+
+def rest_lattice(rest_distance: float, h: float) -> np.ndarray:
+    """Offsets [m] of the cubic lattice points with spacing ``rest_distance`` within ``h`` of the origin (origin included)."""
+    n = int(math.ceil(h / rest_distance))
+    r = np.arange(-n, n + 1, dtype=np.float64) * rest_distance
+    grid = np.stack(np.meshgrid(r, r, r, indexing="ij"), axis=-1).reshape(-1, 3)
+    return grid[np.einsum("ij,ij->i", grid, grid) < h * h]
+
+
+def poly6_np(r2: np.ndarray, h: float) -> np.ndarray:
+    return 315.0 / (64.0 * math.pi * h**9) * np.maximum(h * h - r2, 0.0) ** 3
+
+
+class FluidSolver:
+    """Buffers and passes of the fluid solve for the fluid particles of ``model``.
+
+    Args:
+        model: The model; its particles flagged :attr:`~newton.ParticleFlags.FLUID` are the fluid.
+        config: Validated parameters; ``fluid_rest_distance`` must be set.
+        fluid_particle: Indices of the fluid particles (host array).
+    """
+
+    def __init__(self, model, config: FluidConfig, fluid_particle: np.ndarray):
+        self.model = model
+        self.config = config
+        self.device = model.device
+        self.fluid_count = len(fluid_particle)
+        d = config.fluid_rest_distance
+        h = config.fluid_smoothing_length
+        masses = model.particle_mass.numpy()[fluid_particle]
+        self.mean_mass = float(masses.mean())
+        lattice = rest_lattice(d, h)
+        self.rest_lattice_neighbors = len(lattice) - 1
+        r2 = np.einsum("ij,ij->i", lattice, lattice)
+        #: rest density of a regular lattice at the rest distance under the poly6 sum [kg/m^3]
+        self.lattice_density = float(self.mean_mass * poly6_np(r2, h).sum())
+        # sum |grad C|^2 of a lattice particle at rest (the self term vanishes by symmetry)
+        r = np.sqrt(r2[r2 > 0.0])
+        grad = 45.0 / (math.pi * h**6) * (h - r) ** 2 * (self.mean_mass / self.lattice_density)
+        self.rest_grad_sq = float((grad * grad).sum())
+
+        if config.fluid_max_neighbors > 0:
+            capacity, capped = config.fluid_max_neighbors, True
+        else:
+            capacity, capped = FULL_NEIGHBOR_FACTOR * self.rest_lattice_neighbors, False
+        with wp.ScopedDevice(self.device):
+            self.fluid_particle = wp.array(fluid_particle.astype(np.int32), dtype=wp.int32)
+            self.search = FluidNeighborSearch(self.fluid_particle, h, capacity, capped)
+            n = self.fluid_count
+            self.params = wp.zeros(1, dtype=FluidParams)
+            self.density = wp.zeros(n, dtype=float)
+            self.lambdas = wp.zeros(n, dtype=float)
+            self.sorted_v = wp.zeros(n, dtype=wp.vec3)
+            self.vorticity = wp.zeros(n, dtype=wp.vec3)
+            self.last_finite_q = wp.array(model.particle_q.numpy()[fluid_particle], dtype=wp.vec3)
+            self.nonfinite_count = wp.zeros(1, dtype=wp.int32)
+            #: density of every particle at the state of the last :meth:`diagnostics` call [kg/m^3] (0 for non-fluid)
+            self.particle_density = wp.zeros(model.particle_count, dtype=float)
+            self._summary = wp.zeros(_SUMMARY_SIZE, dtype=float)
+        self.update_params()
+
+    @property
+    def rest_density(self) -> float:
+        """Rest density in use [kg/m^3]: the configured one, else the calibrated lattice density."""
+        rho0 = self.config.fluid_rest_density
+        return self.lattice_density if rho0 is None else rho0
+
+    def update_params(self) -> None:
+        """Copy the current configuration to the device (the next step, or graph replay, uses it)."""
+        c = self.config
+        d, h = c.fluid_rest_distance, c.fluid_smoothing_length
+        p = FluidParams()
+        p.h = h
+        p.h2 = h * h
+        p.poly6 = 315.0 / (64.0 * math.pi * h**9)
+        p.spiky_grad = -45.0 / (math.pi * h**6)
+        p.rest_density = self.rest_density
+        p.inv_rest_density = 1.0 / self.rest_density
+        p.rest_distance = d
+        # the gradients scale with m/rho0, so does their rest norm
+        scale = self.lattice_density / self.rest_density
+        p.epsilon = EPSILON_RELATIVE * self.rest_grad_sq * scale * scale
+        p.relaxation = c.fluid_relaxation
+        p.max_correction = MAX_CORRECTION_FRACTION * d
+        p.cohesion = c.fluid_cohesion * COHESION_DISPLACEMENT * d
+        p.cohesion_zero = AKINCI_ZERO * h
+        p.viscosity = c.fluid_viscosity
+        p.vorticity = c.fluid_vorticity
+        self.params.assign(wp.array([p], dtype=FluidParams, device="cpu"))
+
+    # --- passes inside the upstream step ---------------------------------------------------------
+
+    def build_neighborhood(self, particle_q: wp.array) -> None:
+        m = self.model
+        self.search.build(particle_q, m.particle_mass, m.particle_flags, m.particle_world)
+
+    def _neighbor_inputs(self):
+        s = self.search
+        return [s.neighbors, s.neighbor_count, s.capacity]
+
+    def solve_density(self, particle_q: wp.array, particle_deltas: wp.array) -> None:
+        """One Jacobi iteration of the density constraint: add its correction to ``particle_deltas``."""
+        s, m, n = self.search, self.model, self.fluid_count
+        wp.launch(
+            gather_fluid_positions,
+            dim=n,
+            inputs=[s.sorted_particle, particle_q, m.particle_mass],
+            outputs=[s.sorted_xm],
+            device=self.device,
+        )
+        wp.launch(
+            compute_fluid_density_lambda,
+            dim=n,
+            inputs=[self.params, s.sorted_particle, s.sorted_xm, *self._neighbor_inputs()],
+            outputs=[self.density, self.lambdas],
+            device=self.device,
+        )
+        wp.launch(
+            apply_fluid_density_correction,
+            dim=n,
+            inputs=[
+                self.params,
+                s.sorted_particle,
+                s.sorted_xm,
+                *self._neighbor_inputs(),
+                self.lambdas,
+                m.particle_inv_mass,
+            ],
+            outputs=[particle_deltas],
+            device=self.device,
+        )
+
+    def finish_step(self, state_out, dt: float) -> None:
+        """Viscosity, vorticity confinement and non-finite recovery on the step's result."""
+        s, m, n = self.search, self.model, self.fluid_count
+        c = self.config
+        vorticity = c.fluid_vorticity > 0.0
+        if c.fluid_viscosity > 0.0 or vorticity:
+            wp.launch(
+                gather_fluid_state,
+                dim=n,
+                inputs=[s.sorted_particle, state_out.particle_q, state_out.particle_qd, m.particle_mass],
+                outputs=[s.sorted_xm, self.sorted_v],
+                device=self.device,
+            )
+            wp.launch(
+                apply_fluid_viscosity,
+                dim=n,
+                inputs=[
+                    self.params,
+                    s.sorted_particle,
+                    s.sorted_xm,
+                    self.sorted_v,
+                    *self._neighbor_inputs(),
+                    self.density,
+                    int(vorticity),
+                ],
+                outputs=[state_out.particle_qd, self.vorticity],
+                device=self.device,
+            )
+        if vorticity:
+            wp.launch(
+                apply_vorticity_confinement,
+                dim=n,
+                inputs=[
+                    self.params,
+                    s.sorted_particle,
+                    s.sorted_xm,
+                    *self._neighbor_inputs(),
+                    self.density,
+                    self.vorticity,
+                    dt,
+                ],
+                outputs=[state_out.particle_qd],
+                device=self.device,
+            )
+        wp.launch(
+            recover_nonfinite_fluid,
+            dim=n,
+            inputs=[self.fluid_particle, m.particle_flags],
+            outputs=[state_out.particle_q, state_out.particle_qd, self.last_finite_q, self.nonfinite_count],
+            device=self.device,
+        )
+
+    # --- diagnostics -------------------------------------------------------------------------------
+
+    def diagnostics(self, state) -> dict:
+        """Density and neighbourhood statistics of the fluid at ``state`` (synchronises; not for the hot loop)."""
+        s, m, n = self.search, self.model, self.fluid_count
+        self.build_neighborhood(state.particle_q)
+        wp.launch(
+            compute_fluid_density_lambda,
+            dim=n,
+            inputs=[self.params, s.sorted_particle, s.sorted_xm, *self._neighbor_inputs()],
+            outputs=[self.density, self.lambdas],
+            device=self.device,
+        )
+        self._summary.assign(np.array(_SUMMARY_INIT, dtype=np.float32))
+        wp.launch(
+            summarize_fluid_density,
+            dim=n,
+            inputs=[self.params, s.sorted_particle, self.density, s.neighbor_count, s.candidate_count, s.capacity],
+            outputs=[self.particle_density, self._summary],
+            device=self.device,
+        )
+        v = self._summary.numpy().astype(np.float64)
+        active = int(v[0])
+        mean = (lambda x: x / active) if active else (lambda x: 0.0)
+        return {
+            "active_particles": active,
+            "rest_density": self.rest_density,
+            "mean_abs_density_error": mean(v[1]),
+            "max_abs_density_error": float(v[2]) if active else 0.0,
+            "mean_compression": mean(v[3]),
+            "max_compression": float(v[4]) if active else 0.0,
+            "neighbors_min": int(v[5]) if active else 0,
+            "neighbors_mean": mean(v[6]),
+            "neighbors_max": int(v[7]) if active else 0,
+            "neighbor_overflow": int(v[8]),
+            "candidates_mean": mean(v[9]),
+            "nonfinite_recovered": int(self.nonfinite_count.numpy()[0]),
+        }
+
+
+# summary slots: count, sum|e|, max|e|, sum compression, max compression, nbr min, nbr sum, nbr max,
+# overflowing particles, candidate sum
+_SUMMARY_SIZE = 10
+_SUMMARY_INIT = [0.0, 0.0, 0.0, 0.0, 0.0, 3.0e38, 0.0, 0.0, 0.0, 0.0]
+
+
+@wp.kernel
+def summarize_fluid_density(
+    params: wp.array[FluidParams],
+    sorted_particle: wp.array[wp.int32],
+    density: wp.array[float],
+    neighbor_count: wp.array[wp.int32],
+    candidate_count: wp.array[wp.int32],
+    capacity: int,
+    # outputs
+    particle_density: wp.array[float],
+    summary: wp.array[float],
+):
+    i = wp.tid()
+    pi = sorted_particle[i]
+    if pi < 0:
+        return
+    rho = density[i]
+    particle_density[pi] = rho
+    e = rho * params[0].inv_rest_density - 1.0
+    nb = float(neighbor_count[i])
+    wp.atomic_add(summary, 0, 1.0)
+    wp.atomic_add(summary, 1, wp.abs(e))
+    wp.atomic_max(summary, 2, wp.abs(e))
+    wp.atomic_add(summary, 3, wp.max(e, 0.0))
+    wp.atomic_max(summary, 4, wp.max(e, 0.0))
+    wp.atomic_min(summary, 5, nb)
+    wp.atomic_add(summary, 6, nb)
+    wp.atomic_max(summary, 7, nb)
+    if neighbor_count[i] > capacity:
+        wp.atomic_add(summary, 8, 1.0)
+    wp.atomic_add(summary, 9, float(candidate_count[i]))
+
+
+def find_fluid_particles(model) -> np.ndarray:
+    """Indices of the particles of ``model`` flagged :attr:`~newton.ParticleFlags.FLUID`."""
+    if not model.particle_count:
+        return np.zeros(0, dtype=np.int32)
+    flags = model.particle_flags.numpy()
+    return np.flatnonzero(flags & int(ParticleFlags.FLUID)).astype(np.int32)
