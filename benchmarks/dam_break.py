@@ -1,0 +1,193 @@
+# SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
+# SPDX-License-Identifier: Apache-2.0
+
+"""Dam-break benchmark: milliseconds per frame beside an independently measured density error.
+
+Scene: the tank of ``fluid_xpbd_dam_break`` without obstacles (inner half-length 1.2 m, width =
+column width, 1.6 m walls, ground) and a 34 x 49 x 60 column (99,960 particles at 0.0201439 m)
+against the -x wall; ``--particles`` rescales the spacing. 60 Hz, 8 substeps, 2 iterations,
+cohesion 1.0, viscosity 0.05, vorticity 0, speed clamp 0.5 radius per substep.
+
+The density error is measured outside the solver: a poly6 kernel sum over all particles within
+h (SciPy cKDTree), divided by the rest density of a cubic lattice at the spacing.
+
+Usage::
+
+    python benchmarks/dam_break.py [--particles N] [--device cuda:0] [--json out.json] [--kernel-timing]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import platform
+import statistics
+import sys
+import time
+
+import numpy as np
+import warp as wp
+
+import newton
+from newton.examples.fluid.example_fluid_xpbd_dam_break import add_dam_break
+
+
+def poly6(r2: np.ndarray, h: float) -> np.ndarray:
+    return 315.0 / (64.0 * math.pi * h**9) * np.maximum(h * h - r2, 0.0) ** 3
+
+
+def measure_density_error(q: np.ndarray, mass: float, spacing: float, h: float) -> dict:
+    """Poly6 density of every particle relative to the rest-lattice density, independent of the solver."""
+    from scipy.spatial import cKDTree  # noqa: PLC0415
+
+    n = int(math.ceil(h / spacing))
+    r = np.arange(-n, n + 1) * spacing
+    lattice = np.stack(np.meshgrid(r, r, r, indexing="ij"), -1).reshape(-1, 3)
+    rho0 = mass * poly6(np.einsum("ij,ij->i", lattice, lattice), h).sum()
+    tree = cKDTree(q)
+    pairs = tree.query_pairs(h, output_type="ndarray")
+    d = q[pairs[:, 0]] - q[pairs[:, 1]]
+    w = poly6(np.einsum("ij,ij->i", d, d), h) * mass
+    rho = np.full(len(q), mass * poly6(np.zeros(1), h)[0])
+    np.add.at(rho, pairs[:, 0], w)
+    np.add.at(rho, pairs[:, 1], w)
+    e = rho / rho0 - 1.0
+    c = np.maximum(e, 0.0)
+    return {
+        "mean_abs_density_error": float(np.abs(e).mean()),
+        "mean_compression": float(c.mean()),
+        "p99_compression": float(np.percentile(c, 99)),
+        "max_compression": float(c.max()),
+    }
+
+
+def kernel_breakdown(simulate, device) -> list:
+    """GPU time per kernel name over one un-captured frame (CUDA only)."""
+    wp.synchronize_device(device)
+    wp.timing_begin(cuda_filter=wp.TIMING_KERNEL | wp.TIMING_MEMSET | wp.TIMING_MEMCPY)
+    simulate()
+    results = wp.timing_end()
+    total = {}
+    for r in results:
+        key = r.name.split("(")[0]
+        t, c = total.get(key, (0.0, 0))
+        total[key] = (t + r.elapsed, c + 1)
+    return sorted(([k, t, c] for k, (t, c) in total.items()), key=lambda x: -x[1])
+
+
+def run(args) -> dict:
+    device = wp.get_device(args.device)
+    builder = newton.ModelBuilder()
+    scene = add_dam_break(builder, args.particles, obstacles=False, jitter=0.1)
+    model = builder.finalize(device=device)
+    spacing = scene["spacing"]
+    frame_dt = 1.0 / 60.0
+    dt = frame_dt / args.substeps
+    model.soft_contact_mu = 0.0
+    model.particle_max_velocity = args.speed_clamp * 0.5 * spacing / dt if args.speed_clamp > 0 else 1.0e5
+    solver = newton.solvers.SolverXPBD(
+        model,
+        iterations=args.iterations,
+        fluid_rest_distance=spacing,
+        fluid_cohesion=args.cohesion,
+        fluid_viscosity=args.viscosity,
+        fluid_vorticity=0.0,
+        fluid_relaxation=args.relaxation,
+    )
+    collision = newton.CollisionPipeline(model, soft_contact_max=2 * model.particle_count)
+    contacts = collision.contacts()
+    states = [model.state(), model.state()]
+
+    def simulate():
+        for _ in range(args.substeps):
+            states[0].clear_forces()
+            collision.collide(states[0], contacts)
+            solver.step(states[0], states[1], None, contacts, dt)
+            states[0], states[1] = states[1], states[0]
+
+    with wp.ScopedDevice(device):
+        simulate()  # compile everything, then run the warm-up frames
+        graph = None
+        if device.is_cuda:
+            with wp.ScopedCapture() as capture:
+                simulate()
+            graph = capture.graph
+        frame = (lambda: wp.capture_launch(graph)) if graph else simulate
+        for _ in range(args.warmup_frames):
+            frame()
+        breakdown = kernel_breakdown(simulate, device) if args.kernel_timing and device.is_cuda else []
+
+        trials, errors = [], []
+        for _ in range(args.trials):
+            wp.synchronize_device(device)
+            t0 = time.perf_counter()
+            for _ in range(args.frames):
+                frame()
+            wp.synchronize_device(device)
+            trials.append((time.perf_counter() - t0) * 1000.0 / args.frames)
+            q = states[0].particle_q.numpy().astype(np.float64)
+            errors.append(measure_density_error(q, 1000.0 * spacing**3, spacing, solver.fluid_smoothing_length))
+
+    density = {k: float(np.mean([e[k] for e in errors])) for k in errors[0]}
+    density["max_compression"] = float(max(e["max_compression"] for e in errors))
+    return {
+        "benchmark": "dam_break",
+        "machine": platform.node(),
+        "cpu": platform.processor() or platform.machine(),
+        "device": device.name if device.is_cuda else "cpu",
+        "device_alias": device.alias,
+        "warp": wp.config.version,
+        "newton": newton.__version__,
+        "particles": int(model.particle_count),
+        "spacing_m": spacing,
+        "substeps": args.substeps,
+        "iterations": args.iterations,
+        "cohesion": args.cohesion,
+        "relaxation": args.relaxation,
+        "viscosity": args.viscosity,
+        "speed_clamp_radii_per_substep": args.speed_clamp,
+        "cuda_graph": graph is not None,
+        "sim_time_s": (args.warmup_frames + 2 + args.trials * args.frames) * frame_dt,
+        "ms_per_frame_median": statistics.median(trials),
+        "ms_per_frame_trials": trials,
+        **density,
+        "kernel_ms_per_frame": breakdown,
+    }
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--particles", type=int, default=99_960)
+    parser.add_argument("--device", default=None)
+    parser.add_argument("--substeps", type=int, default=8)
+    parser.add_argument("--iterations", type=int, default=2)
+    parser.add_argument("--cohesion", type=float, default=1.0)
+    parser.add_argument("--relaxation", type=float, default=1.0)
+    parser.add_argument("--viscosity", type=float, default=0.05)
+    parser.add_argument("--speed-clamp", type=float, default=0.5, help="max displacement per substep [radii]; 0: off")
+    parser.add_argument("--warmup-frames", type=int, default=60)
+    parser.add_argument("--frames", type=int, default=30, help="frames per timed trial")
+    parser.add_argument("--trials", type=int, default=5)
+    parser.add_argument("--kernel-timing", action="store_true", help="per-kernel GPU time of one frame (CUDA)")
+    parser.add_argument("--json", default=None, help="write the result here")
+    args = parser.parse_args(argv)
+    wp.config.quiet = True
+    r = run(args)
+    print(f"{'device':<24}{'particles':>10}{'substeps':>9}{'iters':>6}{'ms/frame':>10}{'mean|e|':>9}{'mean c':>8}{'max c':>8}")
+    print(
+        f"{r['device']:<24}{r['particles']:>10}{r['substeps']:>9}{r['iterations']:>6}{r['ms_per_frame_median']:>10.3f}"
+        f"{100 * r['mean_abs_density_error']:>8.2f}%{100 * r['mean_compression']:>7.2f}%{100 * r['max_compression']:>7.2f}%"
+    )
+    if r["kernel_ms_per_frame"]:
+        print("per-kernel GPU time of one frame [ms] (launches):")
+        for name, t, c in r["kernel_ms_per_frame"][:25]:
+            print(f"  {t:8.3f}  ({c:4d})  {name}")
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(r, f, indent=1)
+    return r
+
+
+if __name__ == "__main__":
+    sys.exit(0 if main() else 1)

@@ -1,0 +1,412 @@
+# SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
+# SPDX-License-Identifier: Apache-2.0
+
+"""Physics of the position-based fluid in SolverXPBD (small scenes; CPU always, CUDA when present)."""
+
+import unittest
+
+import numpy as np
+import warp as wp
+
+import newton
+from newton.tests.unittest_utils import add_function_test, get_cuda_test_devices, get_test_devices
+
+FLUID = int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID)
+D = 0.1  # rest distance [m]
+MASS = 1000.0 * D**3
+
+
+def add_block(builder, dims, origin=(0.0, 0.0, 0.0), spacing=D, vel=(0.0, 0.0, 0.0), jitter=0.0):
+    builder.add_particle_grid(
+        pos=wp.vec3(*origin),
+        rot=wp.quat_identity(),
+        vel=wp.vec3(*vel),
+        dim_x=dims[0],
+        dim_y=dims[1],
+        dim_z=dims[2],
+        cell_x=spacing,
+        cell_y=spacing,
+        cell_z=spacing,
+        mass=MASS,
+        jitter=jitter,
+        radius_mean=0.5 * D,
+        flags=FLUID,
+    )
+
+
+def make_model(device, build, gravity=0.0):
+    gravity = (0.0, 0.0, gravity)
+    builder = newton.ModelBuilder(gravity=gravity)
+    build(builder)
+    return builder.finalize(device=device)
+
+
+class Sim:
+    """A model, two states, an optional collision pipeline and a fluid solver."""
+
+    def __init__(self, model, substeps=4, fps=60.0, contacts=False, **solver_kwargs):
+        solver_kwargs.setdefault("iterations", 2)
+        solver_kwargs.setdefault("fluid_rest_distance", D)
+        self.model = model
+        self.solver = newton.solvers.SolverXPBD(model, **solver_kwargs)
+        self.state_0, self.state_1 = model.state(), model.state()
+        self.collision = newton.CollisionPipeline(model) if contacts else None
+        self.contacts = self.collision.contacts() if contacts else None
+        self.dt = 1.0 / fps / substeps
+        self.substeps = substeps
+
+    def step(self, frames=1):
+        for _ in range(frames * self.substeps):
+            self.state_0.clear_forces()
+            if self.collision is not None:
+                self.collision.collide(self.state_0, self.contacts)
+            self.solver.step(self.state_0, self.state_1, None, self.contacts, self.dt)
+            self.state_0, self.state_1 = self.state_1, self.state_0
+
+    def q(self):
+        return self.state_0.particle_q.numpy().astype(np.float64)
+
+    def qd(self):
+        return self.state_0.particle_qd.numpy().astype(np.float64)
+
+
+def test_rest_lattice_stays_at_rest(test, device):
+    model = make_model(device, lambda b: add_block(b, (7, 7, 7)))
+    sim = Sim(model)
+    q0 = sim.q()
+    stats = sim.solver.fluid_diagnostics(sim.state_0)
+    rho = sim.solver.fluid_density.numpy()
+    interior = np.all(np.abs(q0 - q0.mean(axis=0)) < 2.0 * D + 1.0e-6, axis=1)  # full kernel support
+    test.assertEqual(np.count_nonzero(interior), 125)
+    np.testing.assert_allclose(rho[interior] / stats["rest_density"], 1.0, atol=1.0e-3)
+    sim.step(30)
+    test.assertLess(np.abs(sim.q() - q0).max(), 1.0e-4 * D)
+    test.assertLess(np.abs(sim.qd()).max(), 1.0e-4)
+
+
+def test_column_settles_above_ground(test, device):
+    def build(b):
+        add_block(b, (4, 4, 12), origin=(0.5 * D, 0.5 * D, 0.5 * D), jitter=0.05 * D)
+        b.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(mu=0.0))
+        cfg = newton.ModelBuilder.ShapeConfig(mu=0.0)
+        for c, h in (((-0.05, 0.2, 1.0), (0.05, 0.3, 1.0)), ((0.45, 0.2, 1.0), (0.05, 0.3, 1.0))):
+            b.add_shape_box(-1, xform=wp.transform(wp.vec3(*c), wp.quat_identity()), hx=h[0], hy=h[1], hz=h[2], cfg=cfg)
+        for c, h in (((0.2, -0.05, 1.0), (0.3, 0.05, 1.0)), ((0.2, 0.45, 1.0), (0.3, 0.05, 1.0))):
+            b.add_shape_box(-1, xform=wp.transform(wp.vec3(*c), wp.quat_identity()), hx=h[0], hy=h[1], hz=h[2], cfg=cfg)
+
+    model = make_model(device, build, gravity=-9.81)
+    model.soft_contact_mu = 0.0
+    sim = Sim(model, substeps=8, contacts=True, fluid_viscosity=0.05)
+    lowest = np.inf
+    for _ in range(60):
+        sim.step()
+        q = sim.q()
+        lowest = min(lowest, q[:, 2].min())
+        test.assertTrue(np.isfinite(q).all())
+    # the column stays in its 4 x 4 footprint, so it only compacts; it neither explodes nor sinks
+    test.assertGreater(lowest, 0.25 * D)
+    test.assertLess(np.abs(sim.qd()).max(), 0.5)
+    # particles next to a wall miss neighbours (no boundary particles), so a narrow column compacts
+    # more than a wide pool would; it must not collapse
+    test.assertLess(sim.q()[:, 2].max(), 12.0 * D)
+    test.assertGreater(sim.q()[:, 2].max(), 8.5 * D)
+    stats = sim.solver.fluid_diagnostics(sim.state_0)
+    test.assertLess(stats["max_compression"], 0.06)
+
+
+def test_free_fall_matches_analytic(test, device):
+    model = make_model(device, lambda b: add_block(b, (3, 3, 3), origin=(0.0, 0.0, 3.0)), gravity=-9.81)
+    sim = Sim(model, substeps=4)
+    q0 = sim.q()
+    n = 40 * sim.substeps
+    sim.step(40)
+    # semi-implicit Euler from rest: z_n = z_0 - g dt^2 n (n + 1) / 2
+    drop = 9.81 * sim.dt**2 * n * (n + 1) / 2.0
+    # float32 positions: velocities from position differences carry ~ulp(z)/dt of rounding per substep
+    np.testing.assert_allclose(sim.q()[:, 2], q0[:, 2] - drop, atol=1.0e-3 * drop)
+    np.testing.assert_allclose(sim.q()[:, :2], q0[:, :2], atol=1.0e-5)
+    np.testing.assert_allclose(sim.qd()[:, 2], -9.81 * n * sim.dt, rtol=1.0e-3)
+
+
+def test_density_solve_conserves_momentum(test, device):
+    rng = np.random.default_rng(3)
+    model = make_model(device, lambda b: add_block(b, (6, 6, 6), spacing=0.95 * D, jitter=0.1 * D))
+    v = rng.normal(0.0, 0.2, size=(model.particle_count, 3)).astype(np.float32)
+    sim = Sim(model)
+    sim.state_0.particle_qd.assign(v)
+    p0 = v.astype(np.float64).sum(axis=0) * MASS
+    q0 = sim.q()
+    sim.step(10)
+    test.assertGreater(np.abs(sim.q() - q0 - 10.0 / 60.0 * v).max(), 0.1 * D)  # the solve did move particles
+    # (corrections below the per-iteration bound: beyond it, the bound trades momentum for stability)
+    np.testing.assert_allclose(sim.qd().sum(axis=0) * MASS, p0, atol=1.0e-5 * np.abs(v).sum() * MASS)
+
+
+def replicate_blocks(device, worlds, velocities):
+    """A fluid block per world, all worlds at the same place, world ``w`` thrown with ``velocities[w]``."""
+    builder = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))
+    for w in range(worlds):
+        block = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))
+        add_block(block, (5, 5, 5), origin=(0.0, 0.0, 0.05), vel=velocities[w], jitter=0.1 * D)
+        builder.add_world(block)
+    builder.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(mu=0.0))
+    model = builder.finalize(device=device)
+    model.soft_contact_mu = 0.0
+    return model
+
+
+def test_worlds_are_isolated(test, device):
+    velocities = [(0.5, 0.0, 0.0), (0.5, 0.0, 0.0), (-1.0, 0.3, 0.0)]
+    three = Sim(replicate_blocks(device, 3, velocities), contacts=True)
+    alone = Sim(replicate_blocks(device, 1, velocities), contacts=True)
+    three.step(20)
+    alone.step(20)
+    q3 = three.q().reshape(3, -1, 3)
+    np.testing.assert_allclose(q3[0], q3[1], atol=1.0e-6)  # identical worlds, identical results
+    np.testing.assert_allclose(q3[0], alone.q(), atol=1.0e-5)  # the others change nothing
+    test.assertGreater(np.abs(q3[2] - q3[0]).max(), 0.1)  # and world 2 did its own thing
+
+
+def test_overlapping_worlds_cost_one_world(test, device):
+    v = [(0.0, 0.0, 0.0)] * 8
+    one = Sim(replicate_blocks(device, 1, v))
+    eight = Sim(replicate_blocks(device, 8, v))
+    s1 = one.solver.fluid_diagnostics(one.state_0)
+    s8 = eight.solver.fluid_diagnostics(eight.state_0)
+    test.assertEqual(s8["active_particles"], 8 * s1["active_particles"])
+    test.assertAlmostEqual(s8["neighbors_mean"], s1["neighbors_mean"], places=5)
+    # candidates examined per particle: hash collisions between worlds may add a few, never a world's worth
+    test.assertLess(s8["candidates_mean"], 1.1 * s1["candidates_mean"])
+
+
+def test_cohesion_holds_droplet_and_leaves_isolated_particle(test, device):
+    def build(b):
+        add_block(b, (4, 4, 4), spacing=1.05 * D)
+        b.add_particle(pos=wp.vec3(5.0, 0.0, 0.0), vel=wp.vec3(0.0), mass=MASS, radius=0.5 * D, flags=FLUID)
+
+    spreads = {}
+    for cohesion in (0.0, 1.0):
+        model = make_model(device, build)
+        rng = np.random.default_rng(0)
+        q0 = model.particle_q.numpy()
+        centre = q0[:64].mean(axis=0)
+        v = np.zeros_like(q0)
+        v[:64] = (q0[:64] - centre) * 1.5 + rng.normal(0.0, 0.05, size=(64, 3))  # the droplet flies apart
+        sim = Sim(model, fluid_cohesion=cohesion)
+        sim.state_0.particle_qd.assign(v.astype(np.float32))
+        sim.step(60)
+        q = sim.q()
+        spreads[cohesion] = np.linalg.norm(q[:64] - q[:64].mean(axis=0), axis=1).max()
+        np.testing.assert_array_equal(q[64], q0[64])  # isolated particle: no neighbour, no motion
+    test.assertLess(spreads[1.0], 0.6 * spreads[0.0])
+    test.assertLess(spreads[1.0], 5.0 * D)
+
+
+def test_viscosity_lowers_relative_velocity(test, device):
+    rng = np.random.default_rng(1)
+    spread = {}
+    for nu in (0.0, 0.3):
+        model = make_model(device, lambda b: add_block(b, (6, 6, 6)))
+        sim = Sim(model, fluid_viscosity=nu)
+        sim.state_0.particle_qd.assign(rng.normal(0.0, 0.1, size=(model.particle_count, 3)).astype(np.float32))
+        rng = np.random.default_rng(1)
+        sim.step(5)
+        qd = sim.qd()
+        spread[nu] = np.linalg.norm(qd - qd.mean(axis=0), axis=1).mean()
+    test.assertLess(spread[0.3], 0.5 * spread[0.0])
+
+
+def swirl_energy(q, qd):
+    r = q - q.mean(axis=0)
+    omega_z = (r[:, 0] * qd[:, 1] - r[:, 1] * qd[:, 0]) / np.maximum(r[:, 0] ** 2 + r[:, 1] ** 2, 1.0e-9)
+    return float(np.sum(qd * qd)), float(np.mean(np.abs(omega_z)))
+
+
+def test_vorticity_confinement_adds_rotational_energy(test, device):
+    energy = {}
+    for eps in (0.0, 0.5):
+        model = make_model(device, lambda b: add_block(b, (8, 8, 4), origin=(-0.35, -0.35, 0.0)))
+        q = model.particle_q.numpy()
+        rng = np.random.default_rng(2)
+        # small random eddies on top of a slow swirl
+        v = np.stack([-q[:, 1], q[:, 0], np.zeros(len(q))], axis=1) * 0.5 + rng.normal(0.0, 0.05, q.shape)
+        sim = Sim(model, fluid_vorticity=eps, fluid_viscosity=0.01)
+        sim.state_0.particle_qd.assign(v.astype(np.float32))
+        sim.step(10)
+        energy[eps] = swirl_energy(sim.q(), sim.qd())[0]
+    test.assertGreater(energy[0.5], 1.05 * energy[0.0])
+
+
+def brute_force_neighbors(q, h):
+    d2 = np.sum((q[:, None, :] - q[None, :, :]) ** 2, axis=-1)
+    return (d2 < h * h).sum(axis=1) - 1
+
+
+def test_neighbor_cap(test, device):
+    model = make_model(device, lambda b: add_block(b, (6, 6, 6), spacing=0.7 * D, jitter=0.1 * D))
+    full = Sim(model)
+    stats = full.solver.fluid_diagnostics(full.state_0)
+    expected = brute_force_neighbors(model.particle_q.numpy().astype(np.float64), full.solver.fluid_smoothing_length)
+    test.assertAlmostEqual(stats["neighbors_mean"], expected.mean(), places=4)
+    test.assertEqual(stats["neighbors_max"], expected.max())
+    test.assertEqual(stats["neighbor_overflow"], 0)
+    capped = Sim(model, fluid_max_neighbors=12)
+    cstats = capped.solver.fluid_diagnostics(capped.state_0)
+    test.assertEqual(cstats["neighbors_max"], 12)
+    test.assertLess(cstats["candidates_mean"], 0.75 * stats["candidates_mean"])  # the scan stopped early
+    capped.step(3)
+    test.assertTrue(np.isfinite(capped.q()).all())
+
+
+def test_coincident_particles_separate_deterministically(test, device):
+    def build(b):
+        for _ in range(4):
+            b.add_particle(pos=wp.vec3(0.0, 0.0, 1.0), vel=wp.vec3(0.0), mass=MASS, radius=0.5 * D, flags=FLUID)
+
+    results = []
+    for _ in range(2):
+        sim = Sim(make_model(device, build))
+        sim.step(5)
+        results.append(sim.q())
+    q = results[0]
+    test.assertTrue(np.isfinite(q).all())
+    d = np.linalg.norm(q[:, None] - q[None, :], axis=-1)[np.triu_indices(4, 1)]
+    test.assertGreater(d.min(), 0.2 * D)
+    np.testing.assert_array_equal(results[0], results[1])
+    np.testing.assert_allclose(q.mean(axis=0), (0.0, 0.0, 1.0), atol=1.0e-6)  # symmetric push, no drift
+
+
+def pool_with_box(device, box_density):
+    builder = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))
+    cfg = newton.ModelBuilder.ShapeConfig(mu=0.0)
+    add_block(builder, (10, 10, 5), origin=(-0.45, -0.45, 0.5 * D))
+    builder.add_ground_plane(cfg=cfg)
+    for c, h in (
+        ((-0.55, 0.0, 0.5), (0.05, 0.6, 0.5)),
+        ((0.55, 0.0, 0.5), (0.05, 0.6, 0.5)),
+        ((0.0, -0.55, 0.5), (0.5, 0.05, 0.5)),
+        ((0.0, 0.55, 0.5), (0.5, 0.05, 0.5)),
+    ):
+        builder.add_shape_box(-1, xform=wp.transform(wp.vec3(*c), wp.quat_identity()), hx=h[0], hy=h[1], hz=h[2], cfg=cfg)
+    body = builder.add_body(xform=wp.transform(wp.vec3(0.0, 0.0, 0.75), wp.quat_identity()))
+    box_cfg = newton.ModelBuilder.ShapeConfig(mu=0.0, density=box_density)
+    builder.add_shape_box(body, hx=0.15, hy=0.15, hz=0.1, cfg=box_cfg)
+    model = builder.finalize(device=device)
+    model.soft_contact_mu = 0.0
+    return model
+
+
+def test_two_way_coupling_floats_and_sinks(test, device):
+    heights, inside = {}, {}
+    for density in (300.0, 3000.0):
+        model = pool_with_box(device, density)
+        sim = Sim(model, substeps=8, contacts=True, fluid_viscosity=0.1)
+        sim.step(90)
+        q = sim.q()
+        test.assertTrue(np.isfinite(q).all())
+        heights[density] = sim.state_0.body_q.numpy()[0, 2]
+        water_top = np.percentile(q[:, 2], 99)
+        # the box pushed the water out of its way: no particle centre inside it
+        local = np.abs(q - sim.state_0.body_q.numpy()[0, :3])
+        inside[density] = np.count_nonzero(np.all(local < np.array([0.15, 0.15, 0.1]), axis=1))
+    # the water pushes the light box up: it floats with its centre near the surface (water top ~0.43 m)
+    test.assertGreater(heights[300.0], 0.4)
+    # the heavy box sinks through the water toward the floor
+    test.assertLess(heights[3000.0], 0.25)
+    test.assertEqual(inside, {300.0: 0, 3000.0: 0})
+
+
+def test_nonfinite_particles_recovered_and_counted(test, device):
+    model = make_model(device, lambda b: add_block(b, (4, 4, 4), origin=(0.0, 0.0, 1.0)), gravity=-9.81)
+    sim = Sim(model, substeps=1)
+    sim.step(3)
+    reference = Sim(
+        make_model(device, lambda b: add_block(b, (4, 4, 4), origin=(0.0, 0.0, 1.0)), gravity=-9.81), substeps=1
+    )
+    reference.step(3)
+    before = sim.q()
+    q = before.astype(np.float32)
+    q[5] = np.nan
+    qd = sim.qd().astype(np.float32)
+    qd[9] = np.inf
+    sim.state_0.particle_q.assign(q)
+    sim.state_0.particle_qd.assign(qd)
+    sim.step(1)
+    q_after = sim.q()
+    test.assertTrue(np.isfinite(q_after).all() and np.isfinite(sim.qd()).all())
+    test.assertEqual(sim.solver.fluid_nonfinite_count.numpy()[0], 2)
+    np.testing.assert_allclose(q_after[5], before[5], atol=1.0e-6)  # restored to its last finite position
+    np.testing.assert_array_equal(sim.qd()[5], 0.0)
+    test.assertEqual(sim.solver.fluid_diagnostics(sim.state_0)["nonfinite_recovered"], 2)
+    # everything else continued as if nothing happened
+    reference.step(1)
+    others = np.setdiff1d(np.arange(model.particle_count), [5, 9])
+    far = others[np.linalg.norm(before[others] - before[5], axis=1) > 2.0 * D]
+    far = far[np.linalg.norm(before[far] - before[9], axis=1) > 2.0 * D]
+    test.assertGreater(len(far), 0)
+    np.testing.assert_allclose(q_after[far], reference.q()[far], atol=1.0e-6)
+
+
+def test_parameters_change_captured_graph(test, device):
+    rng = np.random.default_rng(4)
+    model = make_model(device, lambda b: add_block(b, (6, 6, 6)))
+    v = rng.normal(0.0, 0.2, size=(model.particle_count, 3)).astype(np.float32)
+    sim = Sim(model, fluid_viscosity=0.05)
+    with wp.ScopedCapture(device=device) as capture:
+        sim.step(1)  # an even number of substeps: state_0 is the graph's input and output
+    spread = {}
+    for nu in (0.05, 0.8):
+        sim.solver.fluid_viscosity = nu
+        sim.state_0.particle_q.assign(model.particle_q)
+        sim.state_0.particle_qd.assign(v)
+        wp.capture_launch(capture.graph)
+        qd = sim.qd()
+        spread[nu] = np.linalg.norm(qd - qd.mean(axis=0), axis=1).mean()
+    test.assertLess(spread[0.8], 0.5 * spread[0.05])
+
+
+def test_no_fluid_adds_no_work(test, device):
+    builder = newton.ModelBuilder()
+    builder.add_particle(pos=wp.vec3(0.0, 0.0, 1.0), vel=wp.vec3(0.0), mass=1.0, radius=0.1)
+    model = builder.finalize(device=device)
+    solver = newton.solvers.SolverXPBD(model)
+    test.assertIsNone(solver._fluid)
+    test.assertEqual(solver.fluid_diagnostics(model.state()), {})
+    s0, s1 = model.state(), model.state()
+    solver.step(s0, s1, None, None, 0.01)
+    test.assertAlmostEqual(float(s1.particle_q.numpy()[0, 2]), 1.0 - 9.81 * 0.01 * 0.01, places=5)
+
+
+def test_fluid_collides_with_granular_particles(test, device):
+    def build(b):
+        add_block(b, (3, 3, 3), origin=(0.0, 0.0, 0.05))
+        # a granular (non-fluid) particle dropped onto the fluid block
+        b.add_particle(pos=wp.vec3(0.1, 0.1, 0.5), vel=wp.vec3(0.0, 0.0, -1.0), mass=MASS, radius=0.5 * D)
+        b.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(mu=0.0))
+
+    model = make_model(device, build, gravity=-9.81)
+    sim = Sim(model, substeps=8, contacts=True)
+    sim.step(30)
+    q = sim.q()
+    fluid_top = q[:27, 2].max()
+    test.assertGreater(q[27, 2], fluid_top - 0.5 * D)  # rests on the fluid, not inside it
+    test.assertGreater(np.linalg.norm(q[:27] - q[27], axis=1).min(), 0.8 * D)
+
+
+class TestSolverXPBDFluid(unittest.TestCase):
+    pass
+
+
+devices = get_test_devices()
+for _name, _func in list(globals().items()):
+    if _name.startswith("test_") and callable(_func) and _name != "test_parameters_change_captured_graph":
+        add_function_test(TestSolverXPBDFluid, _name, _func, devices=devices)
+add_function_test(
+    TestSolverXPBDFluid,
+    "test_parameters_change_captured_graph",
+    test_parameters_change_captured_graph,
+    devices=get_cuda_test_devices(),
+)
+
+if __name__ == "__main__":
+    unittest.main(verbosity=2)
