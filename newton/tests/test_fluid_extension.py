@@ -1,0 +1,281 @@
+# SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
+# SPDX-License-Identifier: Apache-2.0
+
+"""The newton-fluid extension itself: activation, argument validation, version guard, packaging, viewers."""
+
+import inspect
+import os
+import subprocess
+import sys
+import tempfile
+import types
+import unittest
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import warp as wp
+
+import newton
+import newton.viewer
+from newton.tests.unittest_utils import add_function_test, get_test_devices
+
+FLUID = int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID)
+# the checkout (editable install), or None when the tests run from an installed wheel
+CHECKOUT = Path(__file__).resolve().parents[2]
+if not (CHECKOUT / "pyproject.toml").is_file():
+    CHECKOUT = None
+
+
+def run_python(code, env=None, timeout=600):
+    full_env = dict(os.environ, **(env or {}))
+    return subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=full_env, timeout=timeout, check=False
+    )
+
+
+def fluid_model(device, count=8):
+    builder = newton.ModelBuilder()
+    for i in range(count):
+        builder.add_particle(pos=wp.vec3(0.1 * i, 0.0, 1.0), vel=wp.vec3(0.0), mass=1.0, radius=0.05, flags=FLUID)
+    return builder.finalize(device=device)
+
+
+def test_fluid_flag(test, device):
+    test.assertEqual(int(newton.ParticleFlags.FLUID), 1 << 2)
+    test.assertIs(newton.ParticleFlags["FLUID"], newton.ParticleFlags.FLUID)
+    test.assertIs(newton.ParticleFlags(4), newton.ParticleFlags.FLUID)
+    test.assertIn("FLUID", [m.name for m in newton.ParticleFlags])
+    # upstream members keep their values
+    test.assertEqual(int(newton.ParticleFlags.ACTIVE), 1)
+
+
+def test_solver_keywords(test, device):
+    params = inspect.signature(newton.solvers.SolverXPBD).parameters
+    for name in (
+        "fluid_rest_distance",
+        "fluid_smoothing_length",
+        "fluid_rest_density",
+        "fluid_cohesion",
+        "fluid_viscosity",
+        "fluid_vorticity",
+        "fluid_relaxation",
+        "fluid_max_neighbors",
+        "max_diffuse_particles",
+    ):
+        test.assertIn(name, params)
+        test.assertEqual(params[name].kind, inspect.Parameter.KEYWORD_ONLY)
+    solver = newton.solvers.SolverXPBD(fluid_model(device), fluid_rest_distance=0.1, fluid_cohesion=0.3)
+    test.assertAlmostEqual(solver.fluid_smoothing_length, 0.18)
+    test.assertEqual(solver.fluid_cohesion, 0.3)
+    with test.assertRaises(TypeError):
+        newton.solvers.SolverXPBD(fluid_model(device), fluid_rest_distance=0.1, fluid_unknown=1.0)
+
+
+BAD_ARGUMENTS = [
+    ("fluid_rest_distance", 0.0),
+    ("fluid_rest_distance", -0.1),
+    ("fluid_rest_distance", float("nan")),
+    ("fluid_rest_distance", "0.1"),
+    ("fluid_smoothing_length", 0.05),
+    ("fluid_smoothing_length", 0.5),
+    ("fluid_rest_density", 0.0),
+    ("fluid_rest_density", float("inf")),
+    ("fluid_cohesion", -0.1),
+    ("fluid_cohesion", 1.5),
+    ("fluid_viscosity", -1.0),
+    ("fluid_viscosity", 1.01),
+    ("fluid_vorticity", -0.5),
+    ("fluid_relaxation", 0.0),
+    ("fluid_relaxation", 2.5),
+    ("fluid_max_neighbors", -1),
+    ("fluid_max_neighbors", 2.5),
+    ("fluid_max_neighbors", True),
+    ("max_diffuse_particles", -5),
+]
+
+
+def test_bad_arguments_raise(test, device):
+    model = fluid_model(device)
+    for name, value in BAD_ARGUMENTS:
+        kwargs = {"fluid_rest_distance": 0.1, name: value}
+        with test.assertRaises(ValueError, msg=f"{name}={value!r}") as ctx:
+            newton.solvers.SolverXPBD(model, **kwargs)
+        test.assertIn(name, str(ctx.exception))
+        test.assertIn(repr(value), str(ctx.exception))
+        test.assertRegex(str(ctx.exception), r"[\[(].*,.*[\])]")  # names the valid range
+    with test.assertRaisesRegex(ValueError, "fluid_rest_distance=None"):
+        newton.solvers.SolverXPBD(model)
+
+
+def test_parameter_setters(test, device):
+    solver = newton.solvers.SolverXPBD(fluid_model(device), fluid_rest_distance=0.1)
+    solver.fluid_viscosity = 0.25
+    test.assertEqual(solver.fluid_viscosity, 0.25)
+    test.assertAlmostEqual(float(solver._fluid.params.numpy()[0]["viscosity"]), 0.25)
+    with test.assertRaisesRegex(ValueError, "fluid_viscosity=3"):
+        solver.fluid_viscosity = 3
+    test.assertEqual(solver.fluid_viscosity, 0.25)
+    solver.fluid_rest_density = 500.0
+    test.assertAlmostEqual(float(solver._fluid.params.numpy()[0]["rest_density"]), 500.0)
+    with test.assertRaises(AttributeError):
+        solver.fluid_smoothing_length = 0.3
+    # a model without fluid keeps the values but has nothing on the device
+    plain = newton.solvers.SolverXPBD(newton.ModelBuilder().finalize(device=device))
+    plain.fluid_cohesion = 0.5
+    test.assertEqual(plain.fluid_cohesion, 0.5)
+    test.assertIsNone(plain.fluid_density)
+
+
+def test_version_guard(test, device):
+    from newton._src.solvers.xpbd import fluid  # noqa: PLC0415
+
+    solver_module = types.ModuleType("fake_solver_xpbd")
+
+    class SolverXPBD:  # an upstream without the private names the extension patches
+        __module__ = "fake_solver_xpbd"
+
+        def step(self):
+            pass
+
+    sys.modules["fake_solver_xpbd"] = solver_module
+    try:
+        with test.assertRaises(RuntimeError) as ctx:
+            fluid.check_upstream(types.SimpleNamespace(SolverXPBD=SolverXPBD))
+    finally:
+        del sys.modules["fake_solver_xpbd"]
+    message = str(ctx.exception)
+    test.assertIn(f"found newton {newton.__version__}", message)
+    test.assertIn("supports newton 1.8.0", message)
+    test.assertIn("SolverXPBD._apply_particle_deltas", message)
+    test.assertIn("solver_module.solve_particle_particle_contacts", message)
+    # the installed upstream passes
+    fluid.check_upstream(sys.modules["newton._src.solvers.xpbd"])
+
+
+def test_disable_environment_variable(test, device):
+    code = "import newton, inspect; print(hasattr(newton.ParticleFlags, 'FLUID'), 'fluid_rest_distance' in inspect.signature(newton.solvers.SolverXPBD).parameters, hasattr(newton.viewer.ViewerNull, 'log_fluid'))"
+    on = run_python(code)
+    off = run_python(code, env={"NEWTON_FLUID_DISABLE": "1"})
+    test.assertEqual(on.stdout.split()[-3:], ["True", "True", "True"], on.stderr)
+    test.assertEqual(off.stdout.split()[-3:], ["False", "False", "False"], off.stderr)
+
+
+def test_examples_listed(test, device):
+    out = subprocess.run(
+        [sys.executable, "-m", "newton.examples", "--list"], capture_output=True, text=True, timeout=600, check=False
+    )
+    test.assertEqual(out.returncode, 0, out.stderr)
+    test.assertIn("fluid_xpbd_dam_break", out.stdout)
+    test.assertIn("basic_pendulum", out.stdout)  # upstream examples are still there
+    described = subprocess.run(
+        [sys.executable, "-m", "newton.examples", "--describe", "fluid_xpbd_dam_break"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
+    )
+    test.assertIn("Success criteria", described.stdout + described.stderr)
+
+
+def test_test_runner_discovers_fluid_tests(test, device):
+    out = subprocess.run(
+        [sys.executable, "-m", "newton.tests", "-k", "test_fluid_flag_cpu", "--serial-fallback"],
+        capture_output=True,
+        text=True,
+        timeout=1200,
+        check=False,
+        cwd=tempfile.gettempdir(),  # a checkout's docs/ folder would shadow upstream's docs package
+    )
+    log = out.stdout + out.stderr
+    test.assertEqual(out.returncode, 0, log[-3000:])
+    test.assertRegex(log, r"Ran 1 test")
+
+
+def test_wheel_contents_and_clean_uninstall(test, device):
+    if CHECKOUT is None:
+        test.skipTest("needs the source checkout to build the wheel")
+    with tempfile.TemporaryDirectory() as tmp:
+        build = subprocess.run(
+            [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-w", tmp, str(CHECKOUT)],
+            capture_output=True,
+            text=True,
+            timeout=600,
+            check=False,
+        )
+        test.assertEqual(build.returncode, 0, build.stderr[-3000:])
+        wheel = next(Path(tmp).glob("newton_fluid-*.whl"))
+        names = set(zipfile.ZipFile(wheel).namelist())
+        test.assertIn("newton_fluid.pth", names)
+        test.assertIn("_newton_fluid_hook.py", names)
+        test.assertIn("newton/_src/solvers/xpbd/fluid/__init__.py", names)
+        test.assertIn("newton/examples/fluid/example_fluid_xpbd_dam_break.py", names)
+        for upstream in ("newton/__init__.py", "newton/_src/__init__.py", "newton/_src/solvers/xpbd/__init__.py"):
+            test.assertNotIn(upstream, names)  # never shadow an upstream file
+        # install into an empty environment and uninstall again: nothing may stay behind
+        venv = Path(tmp) / "venv"
+        subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(venv)], check=True, timeout=600)
+        py = venv / "bin" / "python"
+        site = Path(run_python_in(py, "import sysconfig; print(sysconfig.get_paths()['purelib'])"))
+        before = {p.relative_to(site) for p in site.rglob("*")}
+        pip = [sys.executable, "-m", "pip", "--python", str(py)]
+        inst = subprocess.run([*pip, "install", "--no-deps", "--no-index", str(wheel)], capture_output=True, text=True)
+        test.assertEqual(inst.returncode, 0, inst.stderr[-3000:])
+        test.assertTrue((site / "newton" / "_src" / "solvers" / "xpbd" / "fluid" / "solver_fluid.py").is_file())
+        test.assertTrue((site / "newton_fluid.pth").is_file())
+        uninst = subprocess.run([*pip, "uninstall", "-y", "newton-fluid"], capture_output=True, text=True)
+        test.assertEqual(uninst.returncode, 0, uninst.stderr[-3000:])
+        after = {p.relative_to(site) for p in site.rglob("*") if "__pycache__" not in p.parts}
+        test.assertEqual(after - before, set())
+
+
+def run_python_in(python, code):
+    return subprocess.run([str(python), "-c", code], capture_output=True, text=True, check=True).stdout.strip()
+
+
+def test_log_fluid_fallback(test, device):
+    viewer = newton.viewer.ViewerNull(num_frames=1)
+    positions = wp.array(np.zeros((4, 3), dtype=np.float32), dtype=wp.vec3, device=device)
+    radii = wp.full(4, 0.05, dtype=float, device=device)
+    viewer.begin_frame(0.0)
+    viewer.log_fluid("/fluid", positions, radii=radii, color=(0.1, 0.2, 0.8, 0.9), absorption=(1.0, 0.5, 0.2), ior=1.33)
+    viewer.log_fluid("/fluid2", positions, radii=0.05, radius_scale=2.0)
+    viewer.log_fluid("/fluid", None)
+    viewer.end_frame()
+    with test.assertRaisesRegex(ValueError, "radius_scale=0"):
+        viewer.log_fluid("/fluid", positions, radii=0.05, radius_scale=0)
+
+
+def test_log_fluid_draws_points_with_batch_color(test, device):
+    calls = []
+
+    class Recorder(newton.viewer.ViewerNull):
+        def log_points(self, name, points, radii=None, colors=None, hidden=False):
+            calls.append((name, points, radii, colors, hidden))
+
+    viewer = Recorder(num_frames=1)
+    positions = wp.array(np.ones((3, 3), dtype=np.float32), dtype=wp.vec3, device=device)
+    radii = wp.full(3, 0.05, dtype=float, device=device)
+    viewer.log_fluid("/water", positions, radii=radii, radius_scale=2.0, color=(0.1, 0.2, 0.8, 0.5))
+    name, points, r, colors, hidden = calls[-1]
+    test.assertEqual(name, "/water")
+    test.assertIs(points, positions)
+    np.testing.assert_allclose(r.numpy(), 0.1, rtol=1.0e-6)
+    np.testing.assert_allclose(colors, (0.1, 0.2, 0.8), rtol=1.0e-6)
+    test.assertFalse(hidden)
+
+
+class TestFluidExtension(unittest.TestCase):
+    pass
+
+
+cpu = [wp.get_device("cpu")]
+devices = get_test_devices()
+for _name, _func in list(globals().items()):
+    if _name.startswith("test_") and callable(_func):
+        # host-side checks run once; device code runs on every device
+        per_device = _name in ("test_solver_keywords", "test_bad_arguments_raise", "test_parameter_setters", "test_log_fluid_fallback")
+        add_function_test(TestFluidExtension, _name, _func, devices=devices if per_device else cpu)
+
+if __name__ == "__main__":
+    unittest.main(verbosity=2)
