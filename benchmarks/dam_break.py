@@ -174,7 +174,9 @@ def main(argv=None):
     args = parser.parse_args(argv)
     wp.config.quiet = True
     r = run(args)
-    print(f"{'device':<24}{'particles':>10}{'substeps':>9}{'iters':>6}{'ms/frame':>10}{'mean|e|':>9}{'mean c':>8}{'max c':>8}")
+    print(
+        f"{'device':<24}{'particles':>10}{'substeps':>9}{'iters':>6}{'ms/frame':>10}{'mean|e|':>9}{'mean c':>8}{'max c':>8}"
+    )
     print(
         f"{r['device']:<24}{r['particles']:>10}{r['substeps']:>9}{r['iterations']:>6}{r['ms_per_frame_median']:>10.3f}"
         f"{100 * r['mean_abs_density_error']:>8.2f}%{100 * r['mean_compression']:>7.2f}%{100 * r['max_compression']:>7.2f}%"

@@ -8,12 +8,12 @@ import re
 import unittest
 from pathlib import Path
 
+import newton.viewer
 import warp as wp
+from newton.tests.unittest_utils import add_function_test, get_test_devices
 
 import newton
 import newton.examples
-import newton.viewer
-from newton.tests.unittest_utils import add_function_test, get_test_devices
 
 # example name -> (command-line arguments, frames)
 EXAMPLES = {
@@ -23,7 +23,9 @@ EXAMPLES = {
 
 def run_example(test, device, name):
     args_list, frames = EXAMPLES[name]
-    module = importlib.import_module(newton.examples.get_examples().get(name) or f"newton.examples.fluid.example_{name}")
+    module = importlib.import_module(
+        newton.examples.get_examples().get(name) or f"newton.examples.fluid.example_{name}"
+    )
     parser = module.Example.create_parser()
     args = parser.parse_args([*args_list, "--viewer", "null", "--test", "--num-frames", str(frames)])
     with wp.ScopedDevice(device):
@@ -61,9 +63,14 @@ class TestFluidExamples(unittest.TestCase):
 devices = get_test_devices()
 for _example in EXAMPLES:
     add_function_test(
-        TestFluidExamples, f"test_{_example}", lambda test, device, n=_example: run_example(test, device, n), devices=devices
+        TestFluidExamples,
+        f"test_{_example}",
+        lambda test, device, n=_example: run_example(test, device, n),
+        devices=devices,
     )
-add_function_test(TestFluidExamples, "test_readme_listings_run", test_readme_listings_run, devices=devices, check_output=False)
+add_function_test(
+    TestFluidExamples, "test_readme_listings_run", test_readme_listings_run, devices=devices, check_output=False
+)
 
 if __name__ == "__main__":
     unittest.main(verbosity=2)

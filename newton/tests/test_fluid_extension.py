@@ -13,12 +13,12 @@ import unittest
 import zipfile
 from pathlib import Path
 
+import newton.viewer
 import numpy as np
 import warp as wp
+from newton.tests.unittest_utils import add_function_test, get_test_devices
 
 import newton
-import newton.viewer
-from newton.tests.unittest_utils import add_function_test, get_test_devices
 
 FLUID = int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID)
 # the checkout (editable install), or None when the tests run from an installed wheel
@@ -274,7 +274,12 @@ devices = get_test_devices()
 for _name, _func in list(globals().items()):
     if _name.startswith("test_") and callable(_func):
         # host-side checks run once; device code runs on every device
-        per_device = _name in ("test_solver_keywords", "test_bad_arguments_raise", "test_parameter_setters", "test_log_fluid_fallback")
+        per_device = _name in (
+            "test_solver_keywords",
+            "test_bad_arguments_raise",
+            "test_parameter_setters",
+            "test_log_fluid_fallback",
+        )
         add_function_test(TestFluidExtension, _name, _func, devices=devices if per_device else cpu)
 
 if __name__ == "__main__":

@@ -149,7 +149,11 @@ class Example:
         self.viewer.begin_frame(self.sim_time)
         self.viewer.log_state(self.state_0)
         self.viewer.log_fluid(
-            "/fluid", self.state_0.particle_q, radii=self.model.particle_radius, radius_scale=1.0, color=(0.2, 0.45, 0.9)
+            "/fluid",
+            self.state_0.particle_q,
+            radii=self.model.particle_radius,
+            radius_scale=1.0,
+            color=(0.2, 0.45, 0.9),
         )
         self.viewer.end_frame()
 

@@ -165,7 +165,7 @@ def compute_fluid_density_lambda(
     xi = wp.vec3(xi4[0], xi4[1], xi4[2])
     rho = xi4[3] * poly6(0.0, p)
     grad_i = wp.vec3(0.0)
-    grad_sq = float(0.0)
+    grad_sq = 0.0
     count = wp.min(neighbor_count[i], max_neighbors)
     for k in range(count):
         j = fluid_neighbor(neighbors, slot_count, i, k)
@@ -399,7 +399,7 @@ def solve_particle_particle_contacts_skip_fluid_pairs(
         return
     correction = wp.vec3(0.0)
     query = wp.hash_grid_query(grid, xi, ri + max_radius + k_cohesion)
-    j = int(0)
+    j = 0
     while wp.hash_grid_query_next(query, j):
         if j == i:
             continue

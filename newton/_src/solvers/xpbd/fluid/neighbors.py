@@ -145,8 +145,8 @@ def build_fluid_neighbor_lists(
     xi = wp.vec3(xi4[0], xi4[1], xi4[2])
     ci = fluid_cell(xi, inv_cell)
     h2 = h * h
-    count = int(0)
-    candidates = int(0)
+    count = 0
+    candidates = 0
     for dz in range(-1, 2):
         for dy in range(-1, 2):
             for dx in range(-1, 2):

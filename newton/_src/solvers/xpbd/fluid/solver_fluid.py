@@ -92,7 +92,9 @@ class FluidConfig:
                 "fluid_smoothing_length", self.fluid_smoothing_length, d, 4.0 * d, lo_open=True
             )
         elif self.fluid_smoothing_length is not None:
-            self.fluid_smoothing_length = _real("fluid_smoothing_length", self.fluid_smoothing_length, 0.0, lo_open=True)
+            self.fluid_smoothing_length = _real(
+                "fluid_smoothing_length", self.fluid_smoothing_length, 0.0, lo_open=True
+            )
         for name in self.MUTABLE:
             self.set(name, getattr(self, name))
         self.fluid_max_neighbors = _count("fluid_max_neighbors", self.fluid_max_neighbors, 4096)
@@ -300,7 +302,7 @@ class FluidSolver:
 
     def diagnostics(self, state) -> dict:
         """Density and neighbourhood statistics of the fluid at ``state`` (synchronises; not for the hot loop)."""
-        s, m, n = self.search, self.model, self.fluid_count
+        s, n = self.search, self.fluid_count
         self.build_neighborhood(state.particle_q)
         wp.launch(
             compute_fluid_density_lambda,
