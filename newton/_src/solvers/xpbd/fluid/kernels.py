@@ -69,13 +69,19 @@ def coincident_direction(pi: int, pj: int):
 
 
 @wp.func
-def spiky_gradient(r: wp.vec3, r2: float, pi: int, pj: int, p: FluidParams):
-    """Gradient of the spiky kernel w.r.t. ``x_i`` for ``r = x_i - x_j`` [1/m^4]."""
-    dist = wp.sqrt(r2)
+def pair_direction(r: wp.vec3, dist: float, pi: int, sorted_particle: wp.array[wp.int32], j: int, p: FluidParams):
+    """``r / |r|``, or the deterministic direction of the pair (particle ``pi``, slot ``j``) if they coincide."""
     if dist < COINCIDENT_FRACTION * p.h:
-        n = coincident_direction(pi, pj)
-    else:
-        n = r / dist
+        # the neighbour's particle index is only loaded in this rare branch
+        return coincident_direction(pi, sorted_particle[j])
+    return r / dist
+
+
+@wp.func
+def spiky_gradient(r: wp.vec3, r2: float, pi: int, sorted_particle: wp.array[wp.int32], j: int, p: FluidParams):
+    """Gradient of the spiky kernel w.r.t. ``x_i`` for ``r = x_i - x_j`` (``j`` a slot) [1/m^4]."""
+    dist = wp.sqrt(r2)
+    n = pair_direction(r, dist, pi, sorted_particle, j, p)
     d = p.h - dist
     return n * (p.spiky_grad * d * d)
 
@@ -165,7 +171,7 @@ def compute_fluid_density_lambda(
     xi = wp.vec3(xi4[0], xi4[1], xi4[2])
     rho = xi4[3] * poly6(0.0, p)
     grad_i = wp.vec3(0.0)
-    grad_sq = 0.0
+    grad_sq = float(0.0)
     count = wp.min(neighbor_count[i], max_neighbors)
     for k in range(count):
         j = fluid_neighbor(neighbors, slot_count, i, k)
@@ -174,7 +180,7 @@ def compute_fluid_density_lambda(
         r2 = wp.dot(r, r)
         if r2 < p.h2:
             rho += xj4[3] * poly6(r2, p)
-            g = spiky_gradient(r, r2, pi, sorted_particle[j], p) * (xj4[3] * p.inv_rest_density)
+            g = spiky_gradient(r, r2, pi, sorted_particle, j, p) * (xj4[3] * p.inv_rest_density)
             grad_i += g
             grad_sq += wp.dot(g, g)
     density[i] = rho
@@ -214,15 +220,12 @@ def apply_fluid_density_correction(
         r = xi - wp.vec3(xj4[0], xj4[1], xj4[2])
         r2 = wp.dot(r, r)
         if r2 < p.h2:
-            pj = sorted_particle[j]
             vol_j = xj4[3] * p.inv_rest_density
-            dx += spiky_gradient(r, r2, pi, pj, p) * ((lam_i + lambdas[j]) * vol_j)
+            dist = wp.sqrt(r2)
+            n = pair_direction(r, dist, pi, sorted_particle, j, p)
+            d = p.h - dist
+            dx += n * (p.spiky_grad * d * d * (lam_i + lambdas[j]) * vol_j)
             if p.cohesion > 0.0:
-                dist = wp.sqrt(r2)
-                if dist < COINCIDENT_FRACTION * p.h:
-                    n = coincident_direction(pi, pj)
-                else:
-                    n = r / dist
                 # mass-weighted so that the pair's momentum is unchanged
                 w = 2.0 * xj4[3] / (xi4[3] + xj4[3])
                 coh -= n * (w * akinci_cohesion(dist, p))
@@ -288,7 +291,7 @@ def apply_fluid_viscosity(
             num += vj * w
             den += w
             if compute_vorticity != 0:
-                omega += wp.cross(vj - vi, spiky_gradient(r, r2, pi, sorted_particle[j], p)) * vol_j
+                omega += wp.cross(vj - vi, spiky_gradient(r, r2, pi, sorted_particle, j, p)) * vol_j
     if p.viscosity > 0.0:
         particle_qd[pi] = vi + (num / den - vi) * p.viscosity
     if compute_vorticity != 0:
@@ -327,7 +330,7 @@ def apply_vorticity_confinement(
         r2 = wp.dot(r, r)
         if r2 < p.h2:
             vol_j = xj4[3] / wp.max(density[j], 1.0e-6)
-            eta += spiky_gradient(r, r2, pi, sorted_particle[j], p) * (vol_j * wp.length(vorticity[j]))
+            eta += spiky_gradient(r, r2, pi, sorted_particle, j, p) * (vol_j * wp.length(vorticity[j]))
     # grad W points from j to i, so -eta points toward larger |omega|
     eta_len = wp.length(eta)
     if eta_len > 1.0e-9:
@@ -399,7 +402,7 @@ def solve_particle_particle_contacts_skip_fluid_pairs(
         return
     correction = wp.vec3(0.0)
     query = wp.hash_grid_query(grid, xi, ri + max_radius + k_cohesion)
-    j = 0
+    j = int(0)
     while wp.hash_grid_query_next(query, j):
         if j == i:
             continue

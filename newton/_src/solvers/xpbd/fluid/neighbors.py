@@ -5,16 +5,16 @@
 
 Once per substep, after prediction:
 
-1. every fluid particle gets a key: a hash of its world index and its cell (cell edge = smoothing
-   length ``h``) in a table of ``2^bits`` entries; inactive or non-finite particles get the
-   sentinel ``2^bits`` and sort last;
+1. every fluid particle gets a key: its world's block of a table of ``2^bits`` entries, and in it
+   the Morton code of its cell (cell edge = smoothing length ``h``); inactive or non-finite
+   particles get the sentinel ``2^bits`` and sort last;
 2. keys are radix-sorted (only ``bits + 1`` bits), so particles of one cell of one world are
    contiguous, and the cell ranges are marked in the table;
 3. positions, masses and worlds are gathered into slot order; each slot then scans the 27
    cells around it and keeps the slots of the same world closer than ``h``.
 
-Because the world index is part of the hash, worlds that overlap in space (``replicate`` with no
-spacing) fall into different table entries: each particle only scans candidates of its own world.
+Because every world has its own block of the table, worlds that overlap in space (``replicate``
+with no spacing) never share an entry: each particle only scans candidates of its own world.
 A candidate is accepted only from the cell it really lies in, so a hash collision between two
 of the 27 cells cannot list a neighbour twice.
 """
@@ -29,12 +29,29 @@ _NO_WORLD = -2
 
 
 @wp.func
-def fluid_cell_hash(cx: int, cy: int, cz: int, world: int, mask: int):
-    h = wp.uint32(cx) * wp.uint32(73856093)
-    h = h ^ (wp.uint32(cy) * wp.uint32(19349663))
-    h = h ^ (wp.uint32(cz) * wp.uint32(83492791))
-    h = h ^ (wp.uint32(world + 2) * wp.uint32(50331653))
-    return wp.int32(h & wp.uint32(mask))
+def spread_bits_by_3(v: int):
+    """Spread the low 10 bits of ``v`` so that bit k lands on bit 3k."""
+    x = wp.uint32(v) & wp.uint32(0x3FF)
+    x = (x | (x << wp.uint32(16))) & wp.uint32(0x030000FF)
+    x = (x | (x << wp.uint32(8))) & wp.uint32(0x0300F00F)
+    x = (x | (x << wp.uint32(4))) & wp.uint32(0x030C30C3)
+    x = (x | (x << wp.uint32(2))) & wp.uint32(0x09249249)
+    return x
+
+
+@wp.func
+def fluid_cell_hash(cx: int, cy: int, cz: int, world: int, cell_bits: int):
+    """Table entry of a cell: the world's block of the table, then the cell's Morton code in it.
+
+    Each world (``-1``, the global one, included) owns ``2^cell_bits`` consecutive entries, so
+    worlds never share an entry and the sort groups particles by world. Morton order keeps cells
+    that are close in space close in the sorted arrays, so neighbour reads of one warp share cache
+    lines. The code wraps periodically within a world's block; cells that alias are told apart by
+    the exact cell check of the neighbour scan.
+    """
+    code = spread_bits_by_3(cx) | (spread_bits_by_3(cy) << wp.uint32(1)) | (spread_bits_by_3(cz) << wp.uint32(2))
+    cell = wp.int32(code & wp.uint32((1 << cell_bits) - 1))
+    return ((world + 1) << cell_bits) | cell
 
 
 @wp.func
@@ -51,6 +68,7 @@ def compute_fluid_cell_keys(
     particle_flags: wp.array[wp.int32],
     particle_world: wp.array[wp.int32],
     inv_cell: float,
+    cell_bits: int,
     mask: int,
     # outputs
     keys: wp.array[wp.int32],
@@ -63,7 +81,7 @@ def compute_fluid_cell_keys(
     # a cell index must fit in int32; farther particles are left out of the fluid solve this substep
     if (particle_flags[pi] & ParticleFlags.ACTIVE) != 0 and wp.isfinite(x) and wp.length(x) * inv_cell < 1.0e9:
         c = fluid_cell(x, inv_cell)
-        key = fluid_cell_hash(c[0], c[1], c[2], particle_world[pi], mask)
+        key = fluid_cell_hash(c[0], c[1], c[2], particle_world[pi], cell_bits)
     keys[k] = key
     values[k] = k
 
@@ -121,7 +139,7 @@ def build_fluid_neighbor_lists(
     cell_end: wp.array[wp.int32],
     h: float,
     inv_cell: float,
-    mask: int,
+    cell_bits: int,
     capacity: int,
     stop_at: int,
     # outputs
@@ -145,15 +163,15 @@ def build_fluid_neighbor_lists(
     xi = wp.vec3(xi4[0], xi4[1], xi4[2])
     ci = fluid_cell(xi, inv_cell)
     h2 = h * h
-    count = 0
-    candidates = 0
+    count = int(0)
+    candidates = int(0)
     for dz in range(-1, 2):
         for dy in range(-1, 2):
             for dx in range(-1, 2):
                 if count >= stop_at:
                     continue
                 c = wp.vec3i(ci[0] + dx, ci[1] + dy, ci[2] + dz)
-                key = fluid_cell_hash(c[0], c[1], c[2], world, mask)
+                key = fluid_cell_hash(c[0], c[1], c[2], world, cell_bits)
                 start = cell_start[key]
                 end = cell_end[key]
                 for j in range(start, end):
@@ -182,13 +200,16 @@ class FluidNeighborSearch:
 
     Args:
         fluid_particle: Particle indices of the fluid particles, shape ``(fluid_count,)``.
+        world_count: Number of worlds (world indices of fluid particles are in ``[-1, world_count)``).
         smoothing_length: Kernel support radius ``h`` [m]; also the cell edge.
         capacity: Neighbours stored per particle.
         capped: If ``True`` the scan stops at ``capacity`` neighbours (bounded work); otherwise it
             counts the whole neighbourhood and reports overflow through :attr:`neighbor_count`.
     """
 
-    def __init__(self, fluid_particle: wp.array, smoothing_length: float, capacity: int, capped: bool):
+    def __init__(
+        self, fluid_particle: wp.array, world_count: int, smoothing_length: float, capacity: int, capped: bool
+    ):
         device = fluid_particle.device
         n = fluid_particle.shape[0]
         self.fluid_particle = fluid_particle
@@ -197,7 +218,12 @@ class FluidNeighborSearch:
         self.inv_cell = 1.0 / self.smoothing_length
         self.capacity = int(capacity)
         self.stop_at = self.capacity if capped else np.iinfo(np.int32).max
-        self.table_bits = max(6, int(np.ceil(np.log2(max(2 * n, 2)))))
+        # world -1 and worlds 0..world_count-1 each own a block of at least 2^6 entries
+        world_bits = int(np.ceil(np.log2(world_count + 1)))
+        self.table_bits = max(world_bits + 6, int(np.ceil(np.log2(max(2 * n, 2)))))
+        if self.table_bits > 30:
+            raise ValueError(f"fluid neighbour table of 2^{self.table_bits} entries exceeds 2^30: too many worlds")
+        self.cell_bits = self.table_bits - world_bits
         self.mask = (1 << self.table_bits) - 1
         with wp.ScopedDevice(device):
             # radix sort needs room for 2x the keys
@@ -219,7 +245,15 @@ class FluidNeighborSearch:
         wp.launch(
             compute_fluid_cell_keys,
             dim=n,
-            inputs=[self.fluid_particle, particle_q, particle_flags, particle_world, self.inv_cell, self.mask],
+            inputs=[
+                self.fluid_particle,
+                particle_q,
+                particle_flags,
+                particle_world,
+                self.inv_cell,
+                self.cell_bits,
+                self.mask,
+            ],
             outputs=[self.keys, self.values],
             device=device,
         )
@@ -250,7 +284,7 @@ class FluidNeighborSearch:
                 self.cell_end,
                 self.smoothing_length,
                 self.inv_cell,
-                self.mask,
+                self.cell_bits,
                 self.capacity,
                 self.stop_at,
             ],

@@ -161,7 +161,9 @@ class FluidSolver:
             capacity, capped = FULL_NEIGHBOR_FACTOR * self.rest_lattice_neighbors, False
         with wp.ScopedDevice(self.device):
             self.fluid_particle = wp.array(fluid_particle.astype(np.int32), dtype=wp.int32)
-            self.search = FluidNeighborSearch(self.fluid_particle, h, capacity, capped)
+            worlds = model.particle_world.numpy()[fluid_particle]
+            world_count = int(worlds.max()) + 1 if len(worlds) else 0
+            self.search = FluidNeighborSearch(self.fluid_particle, world_count, h, capacity, capped)
             n = self.fluid_count
             self.params = wp.zeros(1, dtype=FluidParams)
             self.density = wp.zeros(n, dtype=float)
