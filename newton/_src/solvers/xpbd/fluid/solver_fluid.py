@@ -175,6 +175,7 @@ class FluidSolver:
             #: density of every particle at the state of the last :meth:`diagnostics` call [kg/m^3] (0 for non-fluid)
             self.particle_density = wp.zeros(model.particle_count, dtype=float)
             self._summary = wp.zeros(_SUMMARY_SIZE, dtype=float)
+        self._slots_hold_positions = False
         self.update_params()
 
     @property
@@ -211,6 +212,8 @@ class FluidSolver:
     def build_neighborhood(self, particle_q: wp.array) -> None:
         m = self.model
         self.search.build(particle_q, m.particle_mass, m.particle_flags, m.particle_world)
+        # the build gathered these positions into slot order: the first iteration can use them as they are
+        self._slots_hold_positions = True
 
     def _neighbor_inputs(self):
         s = self.search
@@ -219,13 +222,16 @@ class FluidSolver:
     def solve_density(self, particle_q: wp.array, particle_deltas: wp.array) -> None:
         """One Jacobi iteration of the density constraint: add its correction to ``particle_deltas``."""
         s, m, n = self.search, self.model, self.fluid_count
-        wp.launch(
-            gather_fluid_positions,
-            dim=n,
-            inputs=[s.sorted_particle, particle_q, m.particle_mass],
-            outputs=[s.sorted_xm],
-            device=self.device,
-        )
+        if not self._slots_hold_positions:
+            wp.launch(
+                gather_fluid_positions,
+                dim=n,
+                inputs=[s.sorted_particle, particle_q, m.particle_mass],
+                outputs=[s.sorted_xm],
+                device=self.device,
+            )
+        # after this iteration's correction, the gathered positions are out of date
+        self._slots_hold_positions = False
         wp.launch(
             compute_fluid_density_lambda,
             dim=n,

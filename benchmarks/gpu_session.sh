@@ -1,0 +1,23 @@
+#!/usr/bin/env bash
+# One measuring session on a CUDA machine: the numbers in docs/performance.md come from here.
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|ncu|tests]...
+set -u
+out=${1:?output folder}; shift
+export PYTHONUNBUFFERED=1
+nvidia-smi --query-gpu=name,driver_version,clocks.sm,clocks.max.sm --format=csv | tee "$out/gpu.txt"
+for what in "$@"; do
+  case $what in
+    bench)
+      python3 benchmarks/dam_break.py --kernel-timing --json "$out/dam_break_100k.json" 2>&1 | grep -v '^Module'
+      python3 benchmarks/dam_break.py --particles 1000000 --warmup-frames 20 --frames 10 --trials 3 \
+        --json "$out/dam_break_1m.json" 2>&1 | grep -v '^Module' ;;
+    ncu)
+      ncu --kernel-name regex:'build_fluid|compute_fluid_density|apply_fluid_density|apply_fluid_visc' \
+        --launch-skip 40 --launch-count 4 --section SpeedOfLight --section Occupancy --section LaunchStats \
+        --section MemoryWorkloadAnalysis python3 benchmarks/dam_break.py --warmup-frames 2 --frames 1 --trials 1 \
+        > "$out/ncu.txt" 2>&1; grep -E 'fluid|Duration|Throughput|Achieved Occupancy|Registers Per|L1/TEX Hit|L2 Hit' "$out/ncu.txt" | head -80 ;;
+    tests)
+      python3 -m pytest -q -k cuda newton/tests/test_solver_xpbd_fluid.py newton/tests/test_fluid_examples.py \
+        newton/tests/test_fluid_extension.py 2>&1 | tail -25 ;;
+  esac
+done
