@@ -87,6 +87,13 @@ def spiky_gradient(r: wp.vec3, r2: float, pi: int, sorted_particle: wp.array[wp.
 
 
 @wp.func
+def density_constraint_lambda(rho: float, grad_i: wp.vec3, grad_sq: float, p: FluidParams):
+    """Jacobi multiplier of the unilateral density constraint ``C = max(rho / rho0 - 1, 0)``."""
+    c = wp.max(rho * p.inv_rest_density - 1.0, 0.0)
+    return -c / (grad_sq + wp.dot(grad_i, grad_i) + p.epsilon)
+
+
+@wp.func
 def akinci_cohesion(dist: float, p: FluidParams):
     """Akinci's cohesion spline normalised to a peak of 1, its sign change moved to the rest distance.
 
@@ -184,8 +191,7 @@ def compute_fluid_density_lambda(
             grad_i += g
             grad_sq += wp.dot(g, g)
     density[i] = rho
-    c = wp.max(rho * p.inv_rest_density - 1.0, 0.0)
-    lambdas[i] = -c / (grad_sq + wp.dot(grad_i, grad_i) + p.epsilon)
+    lambdas[i] = density_constraint_lambda(rho, grad_i, grad_sq, p)
 
 
 @wp.kernel

@@ -15,14 +15,17 @@ Once per substep, after prediction:
 
 Because every world has its own block of the table, worlds that overlap in space (``replicate``
 with no spacing) never share an entry: each particle only scans candidates of its own world.
-A candidate is accepted only from the cell it really lies in, so a hash collision between two
-of the 27 cells cannot list a neighbour twice.
+A world's block has at least 2^6 entries, so the Morton code wraps after at least 4 cells on
+every axis: the 27 scanned cells always have distinct entries (no neighbour is listed twice),
+and a particle of an aliased cell lies at least 3 h away and fails the distance test. So
+the scan needs neither a world nor a cell check per candidate.
 """
 
 import numpy as np
 import warp as wp
 
 from ....geometry import ParticleFlags
+from .kernels import FluidParams, density_constraint_lambda, poly6, spiky_gradient
 
 # sentinel world index of a slot with no particle; real world indices are >= -1
 _NO_WORLD = -2
@@ -46,8 +49,8 @@ def fluid_cell_hash(cx: int, cy: int, cz: int, world: int, cell_bits: int):
     Each world (``-1``, the global one, included) owns ``2^cell_bits`` consecutive entries, so
     worlds never share an entry and the sort groups particles by world. Morton order keeps cells
     that are close in space close in the sorted arrays, so neighbour reads of one warp share cache
-    lines. The code wraps periodically within a world's block; cells that alias are told apart by
-    the exact cell check of the neighbour scan.
+    lines. The code wraps periodically within a world's block; cells that alias are at least 4
+    cells apart on some axis, so the distance test of the neighbour scan tells them apart.
     """
     code = spread_bits_by_3(cx) | (spread_bits_by_3(cy) << wp.uint32(1)) | (spread_bits_by_3(cz) << wp.uint32(2))
     cell = wp.int32(code & wp.uint32((1 << cell_bits) - 1))
@@ -133,11 +136,12 @@ def gather_fluid_slots(
 
 @wp.kernel
 def build_fluid_neighbor_lists(
+    params: wp.array[FluidParams],
+    sorted_particle: wp.array[wp.int32],
     sorted_xm: wp.array[wp.vec4],
     sorted_world: wp.array[wp.int32],
     cell_start: wp.array[wp.int32],
     cell_end: wp.array[wp.int32],
-    h: float,
     inv_cell: float,
     cell_bits: int,
     capacity: int,
@@ -146,11 +150,15 @@ def build_fluid_neighbor_lists(
     neighbors: wp.array[wp.int32],
     neighbor_count: wp.array[wp.int32],
     candidate_count: wp.array[wp.int32],
+    density: wp.array[float],
+    lambdas: wp.array[float],
 ):
     """List the slots within ``h`` of slot ``i`` (same world), stored transposed: ``neighbors[k * n + i]``.
 
     ``neighbor_count`` receives the number found, which exceeds ``capacity`` when the list overflowed
     (only the first ``capacity`` are stored). The scan stops once ``stop_at`` neighbours are found.
+    Since the scan computes every stored pair's offset anyway, it also evaluates the density and
+    the multiplier of the density constraint at these positions (those of the first iteration).
     """
     i = wp.tid()
     slot_count = sorted_world.shape[0]
@@ -159,10 +167,14 @@ def build_fluid_neighbor_lists(
         neighbor_count[i] = 0
         candidate_count[i] = 0
         return
+    p = params[0]
+    pi = sorted_particle[i]
     xi4 = sorted_xm[i]
     xi = wp.vec3(xi4[0], xi4[1], xi4[2])
     ci = fluid_cell(xi, inv_cell)
-    h2 = h * h
+    rho = xi4[3] * poly6(0.0, p)
+    grad_i = wp.vec3(0.0)
+    grad_sq = float(0.0)
     count = int(0)
     candidates = int(0)
     for dz in range(-1, 2):
@@ -170,29 +182,29 @@ def build_fluid_neighbor_lists(
             for dx in range(-1, 2):
                 if count >= stop_at:
                     continue
-                c = wp.vec3i(ci[0] + dx, ci[1] + dy, ci[2] + dz)
-                key = fluid_cell_hash(c[0], c[1], c[2], world, cell_bits)
+                key = fluid_cell_hash(ci[0] + dx, ci[1] + dy, ci[2] + dz, world, cell_bits)
                 start = cell_start[key]
                 end = cell_end[key]
                 for j in range(start, end):
                     if count >= stop_at:
                         break
                     candidates += 1
-                    if j == i or sorted_world[j] != world:
-                        continue
                     xj4 = sorted_xm[j]
-                    xj = wp.vec3(xj4[0], xj4[1], xj4[2])
-                    r = xi - xj
-                    if wp.dot(r, r) >= h2:
-                        continue
-                    cj = fluid_cell(xj, inv_cell)
-                    if cj[0] != c[0] or cj[1] != c[1] or cj[2] != c[2]:
+                    r = xi - wp.vec3(xj4[0], xj4[1], xj4[2])
+                    r2 = wp.dot(r, r)
+                    if j == i or r2 >= p.h2:
                         continue
                     if count < capacity:
                         neighbors[count * slot_count + i] = j
+                        rho += xj4[3] * poly6(r2, p)
+                        g = spiky_gradient(r, r2, pi, sorted_particle, j, p) * (xj4[3] * p.inv_rest_density)
+                        grad_i += g
+                        grad_sq += wp.dot(g, g)
                     count += 1
     neighbor_count[i] = count
     candidate_count[i] = candidates
+    density[i] = rho
+    lambdas[i] = density_constraint_lambda(rho, grad_i, grad_sq, p)
 
 
 class FluidNeighborSearch:
@@ -238,8 +250,20 @@ class FluidNeighborSearch:
             self.neighbor_count = wp.zeros(n, dtype=wp.int32)
             self.candidate_count = wp.zeros(n, dtype=wp.int32)
 
-    def build(self, particle_q: wp.array, particle_mass: wp.array, particle_flags: wp.array, particle_world: wp.array):
-        """Sort the fluid particles at ``particle_q`` and rebuild all neighbour lists (no allocation, no sync)."""
+    def build(
+        self,
+        params: wp.array,
+        particle_q: wp.array,
+        particle_mass: wp.array,
+        particle_flags: wp.array,
+        particle_world: wp.array,
+        density: wp.array,
+        lambdas: wp.array,
+    ):
+        """Sort the fluid particles at ``particle_q`` and rebuild all neighbour lists (no allocation, no sync).
+
+        Also writes the slot-ordered ``density`` and constraint multipliers ``lambdas`` at ``particle_q``.
+        """
         n = self.slot_count
         device = particle_q.device
         wp.launch(
@@ -278,16 +302,17 @@ class FluidNeighborSearch:
             build_fluid_neighbor_lists,
             dim=n,
             inputs=[
+                params,
+                self.sorted_particle,
                 self.sorted_xm,
                 self.sorted_world,
                 self.cell_start,
                 self.cell_end,
-                self.smoothing_length,
                 self.inv_cell,
                 self.cell_bits,
                 self.capacity,
                 self.stop_at,
             ],
-            outputs=[self.neighbors, self.neighbor_count, self.candidate_count],
+            outputs=[self.neighbors, self.neighbor_count, self.candidate_count, density, lambdas],
             device=device,
         )
