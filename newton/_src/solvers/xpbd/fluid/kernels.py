@@ -260,7 +260,6 @@ def apply_fluid_viscosity(
     neighbor_count: wp.array[wp.int32],
     max_neighbors: int,
     density: wp.array[float],
-    compute_vorticity: int,
     # outputs
     particle_qd: wp.array[wp.vec3],
     vorticity: wp.array[wp.vec3],
@@ -268,7 +267,7 @@ def apply_fluid_viscosity(
     """Blend each velocity toward the mass- and density-weighted (Shepard) neighbourhood velocity.
 
     ``v_i <- v_i + nu (sum_j V_j W_ij v_j / sum_j V_j W_ij - v_i)`` with ``V_j = m_j / rho_j``, the
-    sums including ``j = i``. When ``compute_vorticity`` is set, the same neighbour loop also
+    sums including ``j = i``. With vorticity confinement on, the same neighbour loop also
     estimates the vorticity ``omega_i = sum_j V_j (v_j - v_i) x grad W_ij`` for the confinement pass.
     """
     i = wp.tid()
@@ -276,6 +275,7 @@ def apply_fluid_viscosity(
     if pi < 0:
         return
     p = params[0]
+    compute_vorticity = p.vorticity > 0.0
     slot_count = sorted_particle.shape[0]
     xi4 = sorted_xm[i]
     xi = wp.vec3(xi4[0], xi4[1], xi4[2])
@@ -296,11 +296,11 @@ def apply_fluid_viscosity(
             vj = sorted_v[j]
             num += vj * w
             den += w
-            if compute_vorticity != 0:
+            if compute_vorticity:
                 omega += wp.cross(vj - vi, spiky_gradient(r, r2, pi, sorted_particle, j, p)) * vol_j
     if p.viscosity > 0.0:
         particle_qd[pi] = vi + (num / den - vi) * p.viscosity
-    if compute_vorticity != 0:
+    if compute_vorticity:
         vorticity[i] = omega
 
 

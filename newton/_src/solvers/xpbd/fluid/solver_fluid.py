@@ -166,6 +166,9 @@ class FluidSolver:
             self.search = FluidNeighborSearch(self.fluid_particle, world_count, h, capacity, capped)
             n = self.fluid_count
             self.params = wp.zeros(1, dtype=FluidParams)
+            # device flags of the optional passes, read by conditional graph nodes
+            self._velocity_pass_on = wp.zeros(1, dtype=wp.int32)
+            self._vorticity_pass_on = wp.zeros(1, dtype=wp.int32)
             self.density = wp.zeros(n, dtype=float)
             self.lambdas = wp.zeros(n, dtype=float)
             self.sorted_v = wp.zeros(n, dtype=wp.vec3)
@@ -206,6 +209,8 @@ class FluidSolver:
         p.viscosity = c.fluid_viscosity
         p.vorticity = c.fluid_vorticity
         self.params.assign(wp.array([p], dtype=FluidParams, device="cpu"))
+        self._velocity_pass_on.fill_(int(c.fluid_viscosity > 0.0 or c.fluid_vorticity > 0.0))
+        self._vorticity_pass_on.fill_(int(c.fluid_vorticity > 0.0))
 
     # --- passes inside the upstream step ---------------------------------------------------------
 
@@ -258,54 +263,62 @@ class FluidSolver:
         )
 
     def finish_step(self, state_out, dt: float) -> None:
-        """Viscosity, vorticity confinement and non-finite recovery on the step's result."""
-        s, m, n = self.search, self.model, self.fluid_count
+        """Viscosity, vorticity confinement and non-finite recovery on the step's result.
+
+        The optional passes cost nothing while their parameter is 0. Inside a graph capture they
+        become conditional nodes on device flags, so switching them on or off later needs no
+        re-capture; outside a capture the host decides (no synchronisation).
+        """
         c = self.config
-        vorticity = c.fluid_vorticity > 0.0
-        if c.fluid_viscosity > 0.0 or vorticity:
-            wp.launch(
-                gather_fluid_state,
-                dim=n,
-                inputs=[s.sorted_particle, state_out.particle_q, state_out.particle_qd, m.particle_mass],
-                outputs=[s.sorted_xm, self.sorted_v],
-                device=self.device,
-            )
-            wp.launch(
-                apply_fluid_viscosity,
-                dim=n,
-                inputs=[
-                    self.params,
-                    s.sorted_particle,
-                    s.sorted_xm,
-                    self.sorted_v,
-                    *self._neighbor_inputs(),
-                    self.density,
-                    int(vorticity),
-                ],
-                outputs=[state_out.particle_qd, self.vorticity],
-                device=self.device,
-            )
-        if vorticity:
-            wp.launch(
-                apply_vorticity_confinement,
-                dim=n,
-                inputs=[
-                    self.params,
-                    s.sorted_particle,
-                    s.sorted_xm,
-                    *self._neighbor_inputs(),
-                    self.density,
-                    self.vorticity,
-                    dt,
-                ],
-                outputs=[state_out.particle_qd],
-                device=self.device,
-            )
+        if self.device.is_capturing:
+            wp.capture_if(self._velocity_pass_on, on_true=self._velocity_pass, state_out=state_out)
+            wp.capture_if(self._vorticity_pass_on, on_true=self._vorticity_pass, state_out=state_out, dt=dt)
+        else:
+            if c.fluid_viscosity > 0.0 or c.fluid_vorticity > 0.0:
+                self._velocity_pass(state_out)
+            if c.fluid_vorticity > 0.0:
+                self._vorticity_pass(state_out, dt)
         wp.launch(
             recover_nonfinite_fluid,
-            dim=n,
-            inputs=[self.fluid_particle, m.particle_flags],
+            dim=self.fluid_count,
+            inputs=[self.fluid_particle, self.model.particle_flags],
             outputs=[state_out.particle_q, state_out.particle_qd, self.last_finite_q, self.nonfinite_count],
+            device=self.device,
+        )
+
+    def _velocity_pass(self, state_out) -> None:
+        """Viscosity, and the vorticity estimate when confinement is on (one neighbour loop)."""
+        s, m, n = self.search, self.model, self.fluid_count
+        wp.launch(
+            gather_fluid_state,
+            dim=n,
+            inputs=[s.sorted_particle, state_out.particle_q, state_out.particle_qd, m.particle_mass],
+            outputs=[s.sorted_xm, self.sorted_v],
+            device=self.device,
+        )
+        wp.launch(
+            apply_fluid_viscosity,
+            dim=n,
+            inputs=[self.params, s.sorted_particle, s.sorted_xm, self.sorted_v, *self._neighbor_inputs(), self.density],
+            outputs=[state_out.particle_qd, self.vorticity],
+            device=self.device,
+        )
+
+    def _vorticity_pass(self, state_out, dt: float) -> None:
+        s = self.search
+        wp.launch(
+            apply_vorticity_confinement,
+            dim=self.fluid_count,
+            inputs=[
+                self.params,
+                s.sorted_particle,
+                s.sorted_xm,
+                *self._neighbor_inputs(),
+                self.density,
+                self.vorticity,
+                dt,
+            ],
+            outputs=[state_out.particle_qd],
             device=self.device,
         )
 
