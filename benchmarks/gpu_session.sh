@@ -16,6 +16,10 @@ for what in "$@"; do
         --launch-skip 40 --launch-count 4 --section SpeedOfLight --section Occupancy --section LaunchStats \
         --section MemoryWorkloadAnalysis python3 benchmarks/dam_break.py --warmup-frames 2 --frames 1 --trials 1 \
         > "$out/ncu.txt" 2>&1; grep -E 'fluid|Duration|Throughput|Achieved Occupancy|Registers Per|L1/TEX Hit|L2 Hit' "$out/ncu.txt" | head -80 ;;
+    variants)
+      for v in "--iterations 4" "--substeps 4 --iterations 4" "--cohesion 0" "--speed-clamp 0"; do
+        echo "== $v"; python3 benchmarks/dam_break.py $v --trials 3 --json "$out/dam_break_100k_${v//[ -]/_}.json" 2>&1 | tail -1
+      done ;;
     tests)
       python3 -m pytest -q -k cuda newton/tests/test_solver_xpbd_fluid.py newton/tests/test_fluid_examples.py \
         newton/tests/test_fluid_extension.py 2>&1 | tail -25 ;;

@@ -44,7 +44,9 @@ class FluidParams:
     relaxation: float
     max_correction: float  # bound of one iteration's density correction [m]
     cohesion: float  # per-iteration cohesion displacement scale [m]
-    cohesion_zero: float  # Akinci spline argument at which the pair bias changes sign [m]
+    cohesion_u0: float  # zero of Akinci's spline, as a fraction of h
+    cohesion_in: float  # u0 / rest distance [1/m]
+    cohesion_out: float  # (1 - u0) / (h - rest distance) [1/m]
     viscosity: float  # [0, 1]
     vorticity: float  # confinement strength [m/s]
 
@@ -97,29 +99,64 @@ def density_constraint_lambda(rho: float, grad_i: wp.vec3, grad_sq: float, p: Fl
 def akinci_cohesion(dist: float, p: FluidParams):
     """Akinci's cohesion spline normalised to a peak of 1, its sign change moved to the rest distance.
 
-    The argument is remapped piecewise linearly so that ``dist = rest_distance`` lands on the
-    spline's own zero (``cohesion_zero``) and ``dist = h`` on ``h``: pairs closer than the rest
-    distance repel, pairs between rest distance and ``h`` attract. Positive means attraction.
+    With ``u`` the spline argument over ``h``, ``c(u) = 64 (1-u)^3 u^3`` for ``u > 1/2`` and
+    ``128 (1-u)^3 u^3 - 1`` below; ``u`` is remapped piecewise linearly from the distance so that
+    the rest distance lands on the spline's own zero ``u0`` and ``h`` on 1: pairs closer than the
+    rest distance repel, pairs between rest distance and ``h`` attract. Positive means attraction.
     """
-    h = p.h
-    d0 = p.rest_distance
-    if dist < d0:
-        s = dist * (p.cohesion_zero / d0)
+    if dist < p.rest_distance:
+        u = dist * p.cohesion_in
     else:
-        s = p.cohesion_zero + (dist - d0) * (h - p.cohesion_zero) / (h - d0)
-    a = (h - s) * (h - s) * (h - s) * s * s * s
-    h6 = h * h * h * h * h * h
-    if 2.0 * s > h:
-        c = a
-    else:
-        c = 2.0 * a - h6 / 64.0
-    return c * (64.0 / h6)
+        u = p.cohesion_u0 + (dist - p.rest_distance) * p.cohesion_out
+    a = (1.0 - u) * u
+    a3 = a * a * a
+    if u > 0.5:
+        return 64.0 * a3
+    return 128.0 * a3 - 1.0
 
 
 @wp.func
 def fluid_neighbor(neighbors: wp.array[wp.int32], slot_count: int, i: int, k: int):
     """Slot of the ``k``-th neighbour of slot ``i`` (lists are stored transposed for coalescing)."""
     return neighbors[k * slot_count + i]
+
+
+@wp.func
+def density_term(xi: wp.vec3, xj4: wp.vec4, pi: int, sorted_particle: wp.array[wp.int32], j: int, p: FluidParams):
+    """Neighbour ``j``'s share of slot ``i``'s constraint: ``(grad C_i w.r.t. x_j, m_j W_ij)``, zero beyond ``h``."""
+    r = xi - wp.vec3(xj4[0], xj4[1], xj4[2])
+    r2 = wp.dot(r, r)
+    if r2 >= p.h2:
+        return wp.vec4(0.0)
+    g = spiky_gradient(r, r2, pi, sorted_particle, j, p) * (xj4[3] * p.inv_rest_density)
+    return wp.vec4(g[0], g[1], g[2], xj4[3] * poly6(r2, p))
+
+
+@wp.func
+def correction_term(
+    xi4: wp.vec4,
+    lam_i: float,
+    xj4: wp.vec4,
+    lam_j: float,
+    pi: int,
+    sorted_particle: wp.array[wp.int32],
+    j: int,
+    p: FluidParams,
+):
+    """Neighbour ``j``'s density correction (top) and unscaled cohesion pull (bottom) on slot ``i``."""
+    r = wp.vec3(xi4[0] - xj4[0], xi4[1] - xj4[1], xi4[2] - xj4[2])
+    r2 = wp.dot(r, r)
+    if r2 >= p.h2:
+        return wp.spatial_vector(wp.vec3(0.0), wp.vec3(0.0))
+    dist = wp.sqrt(r2)
+    n = pair_direction(r, dist, pi, sorted_particle, j, p)
+    d = p.h - dist
+    dx = n * (p.spiky_grad * d * d * (lam_i + lam_j) * xj4[3] * p.inv_rest_density)
+    coh = wp.vec3(0.0)
+    if p.cohesion > 0.0:
+        # mass-weighted so that the pair's momentum is unchanged
+        coh = n * (-2.0 * xj4[3] / (xi4[3] + xj4[3]) * akinci_cohesion(dist, p))
+    return wp.spatial_vector(dx, coh)
 
 
 @wp.kernel
@@ -180,16 +217,26 @@ def compute_fluid_density_lambda(
     grad_i = wp.vec3(0.0)
     grad_sq = float(0.0)
     count = wp.min(neighbor_count[i], max_neighbors)
-    for k in range(count):
+    # two neighbours per trip: their loads are independent and overlap
+    k = int(0)
+    while k + 1 < count:
+        j0 = fluid_neighbor(neighbors, slot_count, i, k)
+        j1 = fluid_neighbor(neighbors, slot_count, i, k + 1)
+        t0 = density_term(xi, sorted_xm[j0], pi, sorted_particle, j0, p)
+        t1 = density_term(xi, sorted_xm[j1], pi, sorted_particle, j1, p)
+        g0 = wp.vec3(t0[0], t0[1], t0[2])
+        g1 = wp.vec3(t1[0], t1[1], t1[2])
+        rho += t0[3] + t1[3]
+        grad_i += g0 + g1
+        grad_sq += wp.dot(g0, g0) + wp.dot(g1, g1)
+        k += 2
+    if k < count:
         j = fluid_neighbor(neighbors, slot_count, i, k)
-        xj4 = sorted_xm[j]
-        r = xi - wp.vec3(xj4[0], xj4[1], xj4[2])
-        r2 = wp.dot(r, r)
-        if r2 < p.h2:
-            rho += xj4[3] * poly6(r2, p)
-            g = spiky_gradient(r, r2, pi, sorted_particle, j, p) * (xj4[3] * p.inv_rest_density)
-            grad_i += g
-            grad_sq += wp.dot(g, g)
+        t = density_term(xi, sorted_xm[j], pi, sorted_particle, j, p)
+        g = wp.vec3(t[0], t[1], t[2])
+        rho += t[3]
+        grad_i += g
+        grad_sq += wp.dot(g, g)
     density[i] = rho
     lambdas[i] = density_constraint_lambda(rho, grad_i, grad_sq, p)
 
@@ -215,26 +262,22 @@ def apply_fluid_density_correction(
     p = params[0]
     slot_count = sorted_particle.shape[0]
     xi4 = sorted_xm[i]
-    xi = wp.vec3(xi4[0], xi4[1], xi4[2])
     lam_i = lambdas[i]
-    dx = wp.vec3(0.0)
-    coh = wp.vec3(0.0)
+    acc = wp.spatial_vector(wp.vec3(0.0), wp.vec3(0.0))
     count = wp.min(neighbor_count[i], max_neighbors)
-    for k in range(count):
+    # two neighbours per trip: their loads are independent and overlap
+    k = int(0)
+    while k + 1 < count:
+        j0 = fluid_neighbor(neighbors, slot_count, i, k)
+        j1 = fluid_neighbor(neighbors, slot_count, i, k + 1)
+        acc += correction_term(xi4, lam_i, sorted_xm[j0], lambdas[j0], pi, sorted_particle, j0, p)
+        acc += correction_term(xi4, lam_i, sorted_xm[j1], lambdas[j1], pi, sorted_particle, j1, p)
+        k += 2
+    if k < count:
         j = fluid_neighbor(neighbors, slot_count, i, k)
-        xj4 = sorted_xm[j]
-        r = xi - wp.vec3(xj4[0], xj4[1], xj4[2])
-        r2 = wp.dot(r, r)
-        if r2 < p.h2:
-            vol_j = xj4[3] * p.inv_rest_density
-            dist = wp.sqrt(r2)
-            n = pair_direction(r, dist, pi, sorted_particle, j, p)
-            d = p.h - dist
-            dx += n * (p.spiky_grad * d * d * (lam_i + lambdas[j]) * vol_j)
-            if p.cohesion > 0.0:
-                # mass-weighted so that the pair's momentum is unchanged
-                w = 2.0 * xj4[3] / (xi4[3] + xj4[3])
-                coh -= n * (w * akinci_cohesion(dist, p))
+        acc += correction_term(xi4, lam_i, sorted_xm[j], lambdas[j], pi, sorted_particle, j, p)
+    dx = wp.spatial_top(acc)
+    coh = wp.spatial_bottom(acc)
     dx *= p.relaxation
     dx_len = wp.length(dx)
     if dx_len > p.max_correction:

@@ -25,7 +25,7 @@ import numpy as np
 import warp as wp
 
 from ....geometry import ParticleFlags
-from .kernels import FluidParams, density_constraint_lambda, poly6, spiky_gradient
+from .kernels import FluidParams, density_constraint_lambda, density_term, poly6
 
 # sentinel world index of a slot with no particle; real world indices are >= -1
 _NO_WORLD = -2
@@ -196,8 +196,9 @@ def build_fluid_neighbor_lists(
                         continue
                     if count < capacity:
                         neighbors[count * slot_count + i] = j
-                        rho += xj4[3] * poly6(r2, p)
-                        g = spiky_gradient(r, r2, pi, sorted_particle, j, p) * (xj4[3] * p.inv_rest_density)
+                        t = density_term(xi, xj4, pi, sorted_particle, j, p)
+                        g = wp.vec3(t[0], t[1], t[2])
+                        rho += t[3]
                         grad_i += g
                         grad_sq += wp.dot(g, g)
                     count += 1

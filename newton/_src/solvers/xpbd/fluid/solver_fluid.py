@@ -205,7 +205,9 @@ class FluidSolver:
         p.relaxation = c.fluid_relaxation
         p.max_correction = MAX_CORRECTION_FRACTION * d
         p.cohesion = c.fluid_cohesion * COHESION_DISPLACEMENT * d
-        p.cohesion_zero = AKINCI_ZERO * h
+        p.cohesion_u0 = AKINCI_ZERO
+        p.cohesion_in = AKINCI_ZERO / d
+        p.cohesion_out = (1.0 - AKINCI_ZERO) / (h - d)
         p.viscosity = c.fluid_viscosity
         p.vorticity = c.fluid_vorticity
         self.params.assign(wp.array([p], dtype=FluidParams, device="cpu"))
