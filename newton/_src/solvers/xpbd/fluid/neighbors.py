@@ -9,7 +9,8 @@ Once per substep, after prediction:
    the Morton code of its cell (cell edge = smoothing length ``h``); inactive or non-finite
    particles get the sentinel ``2^bits`` and sort last;
 2. keys are radix-sorted (only ``bits + 1`` bits), so particles of one cell of one world are
-   contiguous, and the cell ranges are marked in the table;
+   contiguous, and the cell ranges are marked in the table (never cleared: a stale entry is
+   recognised because its key does not occur in the sorted keys);
 3. positions, masses and worlds are gathered into slot order; each slot then scans the 27
    cells around it and keeps the slots of the same world closer than ``h``.
 
@@ -25,7 +26,6 @@ import numpy as np
 import warp as wp
 
 from ....geometry import ParticleFlags
-from .kernels import FluidParams, density_constraint_lambda, density_term, poly6
 
 # sentinel world index of a slot with no particle; real world indices are >= -1
 _NO_WORLD = -2
@@ -136,12 +136,12 @@ def gather_fluid_slots(
 
 @wp.kernel
 def build_fluid_neighbor_lists(
-    params: wp.array[FluidParams],
-    sorted_particle: wp.array[wp.int32],
+    keys: wp.array[wp.int32],
     sorted_xm: wp.array[wp.vec4],
     sorted_world: wp.array[wp.int32],
     cell_start: wp.array[wp.int32],
     cell_end: wp.array[wp.int32],
+    h: float,
     inv_cell: float,
     cell_bits: int,
     capacity: int,
@@ -150,15 +150,13 @@ def build_fluid_neighbor_lists(
     neighbors: wp.array[wp.int32],
     neighbor_count: wp.array[wp.int32],
     candidate_count: wp.array[wp.int32],
-    density: wp.array[float],
-    lambdas: wp.array[float],
 ):
     """List the slots within ``h`` of slot ``i`` (same world), stored transposed: ``neighbors[k * n + i]``.
 
     ``neighbor_count`` receives the number found, which exceeds ``capacity`` when the list overflowed
     (only the first ``capacity`` are stored). The scan stops once ``stop_at`` neighbours are found.
-    Since the scan computes every stored pair's offset anyway, it also evaluates the density and
-    the multiplier of the density constraint at these positions (those of the first iteration).
+    (Evaluating the density here as well was measured slower on an H100 than a separate pass: the
+    scan's loop is divergent and the extra registers cost occupancy.)
     """
     i = wp.tid()
     slot_count = sorted_world.shape[0]
@@ -167,14 +165,13 @@ def build_fluid_neighbor_lists(
         neighbor_count[i] = 0
         candidate_count[i] = 0
         return
-    p = params[0]
-    pi = sorted_particle[i]
+    h2 = h * h
     xi4 = sorted_xm[i]
     xi = wp.vec3(xi4[0], xi4[1], xi4[2])
     ci = fluid_cell(xi, inv_cell)
-    rho = xi4[3] * poly6(0.0, p)
-    grad_i = wp.vec3(0.0)
-    grad_sq = float(0.0)
+    # distance from x_i to the lower and upper faces of its cell, per axis
+    lo = wp.vec3(xi[0] - float(ci[0]) * h, xi[1] - float(ci[1]) * h, xi[2] - float(ci[2]) * h)
+    hi = wp.vec3(h, h, h) - lo
     count = int(0)
     candidates = int(0)
     for dz in range(-1, 2):
@@ -182,8 +179,20 @@ def build_fluid_neighbor_lists(
             for dx in range(-1, 2):
                 if count >= stop_at:
                     continue
+                # skip a cell whose box is farther than h (about a quarter of the 27, corners mostly)
+                gap = wp.vec3(
+                    wp.where(dx < 0, lo[0], wp.where(dx > 0, hi[0], 0.0)),
+                    wp.where(dy < 0, lo[1], wp.where(dy > 0, hi[1], 0.0)),
+                    wp.where(dz < 0, lo[2], wp.where(dz > 0, hi[2], 0.0)),
+                )
+                if wp.dot(gap, gap) >= h2:
+                    continue
                 key = fluid_cell_hash(ci[0] + dx, ci[1] + dy, ci[2] + dz, world, cell_bits)
                 start = cell_start[key]
+                # entries are not cleared between builds: one is current iff its key occurs now,
+                # and then this build's mark pass rewrote it
+                if start >= slot_count or keys[start] != key:
+                    continue
                 end = cell_end[key]
                 for j in range(start, end):
                     if count >= stop_at:
@@ -191,21 +200,13 @@ def build_fluid_neighbor_lists(
                     candidates += 1
                     xj4 = sorted_xm[j]
                     r = xi - wp.vec3(xj4[0], xj4[1], xj4[2])
-                    r2 = wp.dot(r, r)
-                    if j == i or r2 >= p.h2:
+                    if j == i or wp.dot(r, r) >= h2:
                         continue
                     if count < capacity:
                         neighbors[count * slot_count + i] = j
-                        t = density_term(xi, xj4, pi, sorted_particle, j, p)
-                        g = wp.vec3(t[0], t[1], t[2])
-                        rho += t[3]
-                        grad_i += g
-                        grad_sq += wp.dot(g, g)
                     count += 1
     neighbor_count[i] = count
     candidate_count[i] = candidates
-    density[i] = rho
-    lambdas[i] = density_constraint_lambda(rho, grad_i, grad_sq, p)
 
 
 class FluidNeighborSearch:
@@ -251,19 +252,10 @@ class FluidNeighborSearch:
             self.neighbor_count = wp.zeros(n, dtype=wp.int32)
             self.candidate_count = wp.zeros(n, dtype=wp.int32)
 
-    def build(
-        self,
-        params: wp.array,
-        particle_q: wp.array,
-        particle_mass: wp.array,
-        particle_flags: wp.array,
-        particle_world: wp.array,
-        density: wp.array,
-        lambdas: wp.array,
-    ):
+    def build(self, particle_q: wp.array, particle_mass: wp.array, particle_flags: wp.array, particle_world: wp.array):
         """Sort the fluid particles at ``particle_q`` and rebuild all neighbour lists (no allocation, no sync).
 
-        Also writes the slot-ordered ``density`` and constraint multipliers ``lambdas`` at ``particle_q``.
+        Afterwards :attr:`sorted_xm` holds the positions and masses at ``particle_q`` in slot order.
         """
         n = self.slot_count
         device = particle_q.device
@@ -283,8 +275,6 @@ class FluidNeighborSearch:
             device=device,
         )
         wp.utils.radix_sort_pairs(self.keys, self.values, n, end_bit=self.table_bits + 1)
-        self.cell_start.zero_()
-        self.cell_end.zero_()
         wp.launch(
             mark_fluid_cell_ranges,
             dim=n,
@@ -303,17 +293,17 @@ class FluidNeighborSearch:
             build_fluid_neighbor_lists,
             dim=n,
             inputs=[
-                params,
-                self.sorted_particle,
+                self.keys,
                 self.sorted_xm,
                 self.sorted_world,
                 self.cell_start,
                 self.cell_end,
+                self.smoothing_length,
                 self.inv_cell,
                 self.cell_bits,
                 self.capacity,
                 self.stop_at,
             ],
-            outputs=[self.neighbors, self.neighbor_count, self.candidate_count, density, lambdas],
+            outputs=[self.neighbors, self.neighbor_count, self.candidate_count],
             device=device,
         )

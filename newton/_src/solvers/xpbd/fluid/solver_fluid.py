@@ -178,7 +178,7 @@ class FluidSolver:
             #: density of every particle at the state of the last :meth:`diagnostics` call [kg/m^3] (0 for non-fluid)
             self.particle_density = wp.zeros(model.particle_count, dtype=float)
             self._summary = wp.zeros(_SUMMARY_SIZE, dtype=float)
-        self._constraint_evaluated = False
+        self._slots_hold_positions = False
         self.update_params()
 
     @property
@@ -218,12 +218,9 @@ class FluidSolver:
 
     def build_neighborhood(self, particle_q: wp.array) -> None:
         m = self.model
-        self.search.build(
-            self.params, particle_q, m.particle_mass, m.particle_flags, m.particle_world, self.density, self.lambdas
-        )
-        # the build gathered these positions and evaluated the constraint at them: the first iteration
-        # goes straight to the correction
-        self._constraint_evaluated = True
+        self.search.build(particle_q, m.particle_mass, m.particle_flags, m.particle_world)
+        # the build gathered these positions into slot order: the first iteration uses them as they are
+        self._slots_hold_positions = True
 
     def _neighbor_inputs(self):
         s = self.search
@@ -232,7 +229,7 @@ class FluidSolver:
     def solve_density(self, particle_q: wp.array, particle_deltas: wp.array) -> None:
         """One Jacobi iteration of the density constraint: add its correction to ``particle_deltas``."""
         s, m, n = self.search, self.model, self.fluid_count
-        if not self._constraint_evaluated:
+        if not self._slots_hold_positions:
             wp.launch(
                 gather_fluid_positions,
                 dim=n,
@@ -240,15 +237,9 @@ class FluidSolver:
                 outputs=[s.sorted_xm],
                 device=self.device,
             )
-            wp.launch(
-                compute_fluid_density_lambda,
-                dim=n,
-                inputs=[self.params, s.sorted_particle, s.sorted_xm, *self._neighbor_inputs()],
-                outputs=[self.density, self.lambdas],
-                device=self.device,
-            )
-        # after this iteration's correction, the gathered positions and the multipliers are out of date
-        self._constraint_evaluated = False
+        # after this iteration's correction, the gathered positions are out of date
+        self._slots_hold_positions = False
+        self._evaluate_constraint()
         wp.launch(
             apply_fluid_density_correction,
             dim=n,
@@ -261,6 +252,17 @@ class FluidSolver:
                 m.particle_inv_mass,
             ],
             outputs=[particle_deltas],
+            device=self.device,
+        )
+
+    def _evaluate_constraint(self) -> None:
+        """Density and multipliers at the positions gathered in :attr:`FluidNeighborSearch.sorted_xm`."""
+        s = self.search
+        wp.launch(
+            compute_fluid_density_lambda,
+            dim=self.fluid_count,
+            inputs=[self.params, s.sorted_particle, s.sorted_xm, *self._neighbor_inputs()],
+            outputs=[self.density, self.lambdas],
             device=self.device,
         )
 
@@ -329,8 +331,9 @@ class FluidSolver:
     def diagnostics(self, state) -> dict:
         """Density and neighbourhood statistics of the fluid at ``state`` (synchronises; not for the hot loop)."""
         s, n = self.search, self.fluid_count
-        self.build_neighborhood(state.particle_q)  # also evaluates the density at these positions
-        self._constraint_evaluated = False
+        self.build_neighborhood(state.particle_q)
+        self._evaluate_constraint()
+        self._slots_hold_positions = False
         self._summary.assign(np.array(_SUMMARY_INIT, dtype=np.float32))
         wp.launch(
             summarize_fluid_density,
