@@ -50,7 +50,8 @@ class Sim:
         self.model = model
         self.solver = newton.solvers.SolverXPBD(model, **solver_kwargs)
         self.state_0, self.state_1 = model.state(), model.state()
-        self.collision = newton.CollisionPipeline(model) if contacts else None
+        # contacts out to one diameter from the surface, so fluid particles see the walls' density
+        self.collision = newton.CollisionPipeline(model, soft_contact_gap=0.5 * D) if contacts else None
         self.contacts = self.collision.contacts() if contacts else None
         self.dt = 1.0 / fps / substeps
         self.substeps = substeps
@@ -106,10 +107,10 @@ def test_column_settles_above_ground(test, device):
     # the column stays in its 4 x 4 footprint, so it only compacts; it neither explodes nor sinks
     test.assertGreater(lowest, 0.25 * D)
     test.assertLess(np.abs(sim.qd()).max(), 0.5)
-    # particles next to a wall miss neighbours (no boundary particles), so a narrow column compacts
-    # more than a wide pool would; it must not collapse
+    # the walls lend the density of the fluid missing behind them, so even this narrow column keeps
+    # its height (initial top: 11.5 spacings plus jitter) instead of compacting against them
     test.assertLess(sim.q()[:, 2].max(), 12.0 * D)
-    test.assertGreater(sim.q()[:, 2].max(), 8.5 * D)
+    test.assertGreater(sim.q()[:, 2].max(), 11.0 * D)
     stats = sim.solver.fluid_diagnostics(sim.state_0)
     test.assertLess(stats["max_compression"], 0.06)
 
@@ -312,8 +313,8 @@ def test_two_way_coupling_floats_and_sinks(test, device):
         inside[density] = np.count_nonzero(np.all(local < np.array([0.15, 0.15, 0.1]), axis=1))
     # the water pushes the light box up: it floats with its centre near the surface (water top ~0.43 m)
     test.assertGreater(heights[300.0], 0.4)
-    # the heavy box sinks through the water toward the floor
-    test.assertLess(heights[3000.0], 0.25)
+    # the heavy box sinks through the water toward the floor (a layer or two of water stays under it)
+    test.assertLess(heights[3000.0], 0.3)
     test.assertEqual(inside, {300.0: 0, 3000.0: 0})
 
 

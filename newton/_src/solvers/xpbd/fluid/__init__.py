@@ -158,6 +158,7 @@ def activate(xpbd_module) -> None:
     def step(self, state_in, state_out, control, contacts, dt, **kwargs):
         if self._fluid is None:
             return upstream_step(self, state_in, state_out, control, contacts, dt, **kwargs)
+        self._fluid.contacts = contacts
         with _fluid_particle_contacts(solver_module, self.model, self._fluid):
             upstream_step(self, state_in, state_out, control, contacts, dt, **kwargs)
         self._fluid.finish_step(state_out, dt)

@@ -49,6 +49,8 @@ class FluidParams:
     cohesion_out: float  # (1 - u0) / (h - rest distance) [1/m]
     viscosity: float  # [0, 1]
     vorticity: float  # confinement strength [m/s]
+    wall_scale: float  # lattice density / rest density: converts the wall tables to constraint units
+    wall_table_step: float  # wall distance between table samples [m]
 
 
 @wp.func
@@ -200,11 +202,17 @@ def compute_fluid_density_lambda(
     neighbors: wp.array[wp.int32],
     neighbor_count: wp.array[wp.int32],
     max_neighbors: int,
+    wall_c: wp.array[float],
+    wall_grad: wp.array[wp.vec3],
     # outputs
     density: wp.array[float],
     lambdas: wp.array[float],
 ):
-    """Poly6 density and the Jacobi multiplier of the unilateral constraint C = max(rho/rho0 - 1, 0)."""
+    """Poly6 density and the Jacobi multiplier of the unilateral constraint C = max(rho/rho0 - 1, 0).
+
+    ``wall_c`` and ``wall_grad`` are the static walls' share of ``rho / rho0`` and its gradient (see
+    :func:`accumulate_fluid_wall_density`; zero away from walls).
+    """
     i = wp.tid()
     pi = sorted_particle[i]
     if pi < 0:
@@ -237,6 +245,9 @@ def compute_fluid_density_lambda(
         rho += t[3]
         grad_i += g
         grad_sq += wp.dot(g, g)
+    # the walls do not move: their gradient only adds to the particle's own
+    rho += wall_c[i] * p.rest_density
+    grad_i += wall_grad[i]
     density[i] = rho
     lambdas[i] = density_constraint_lambda(rho, grad_i, grad_sq, p)
 
@@ -250,6 +261,7 @@ def apply_fluid_density_correction(
     neighbor_count: wp.array[wp.int32],
     max_neighbors: int,
     lambdas: wp.array[float],
+    wall_grad: wp.array[wp.vec3],
     particle_inv_mass: wp.array[float],
     # outputs
     particle_deltas: wp.array[wp.vec3],
@@ -276,7 +288,7 @@ def apply_fluid_density_correction(
     if k < count:
         j = fluid_neighbor(neighbors, slot_count, i, k)
         acc += correction_term(xi4, lam_i, sorted_xm[j], lambdas[j], pi, sorted_particle, j, p)
-    dx = wp.spatial_top(acc)
+    dx = wp.spatial_top(acc) + wall_grad[i] * lam_i
     coh = wp.spatial_bottom(acc)
     dx *= p.relaxation
     dx_len = wp.length(dx)
@@ -385,6 +397,53 @@ def apply_vorticity_confinement(
     if eta_len > 1.0e-9:
         n = -eta / eta_len
         particle_qd[pi] = particle_qd[pi] + wp.cross(n, vorticity[i]) * (p.vorticity * dt)
+
+
+@wp.kernel
+def accumulate_fluid_wall_density(
+    params: wp.array[FluidParams],
+    contact_count: wp.array[int],
+    contact_particle: wp.array[int],
+    contact_shape: wp.array[int],
+    contact_point: wp.array[wp.vec3],
+    contact_normal: wp.array[wp.vec3],
+    contact_max: int,
+    shape_body: wp.array[int],
+    slot_of_particle: wp.array[wp.int32],
+    particle_q: wp.array[wp.vec3],
+    wall_table: wp.array[float],
+    wall_table_grad: wp.array[float],
+    # outputs
+    wall_c: wp.array[float],
+    wall_grad: wp.array[wp.vec3],
+):
+    """Density a static wall lends to a fluid particle near it, from the particle-shape contacts.
+
+    The fluid would continue beyond the wall as a lattice at rest; the tables hold that ghost
+    fluid's poly6 density (over the lattice density) and its derivative against the distance
+    from the particle centre to the wall. Without it a particle by a wall misses neighbours and
+    packs closer than the rest distance before the constraint acts.
+    """
+    k = wp.tid()
+    if k >= wp.min(contact_count[0], contact_max):
+        return
+    pi = contact_particle[k]
+    slot = slot_of_particle[pi]
+    # walls of moving bodies would need their reaction on the body: only static shapes take part
+    if slot < 0 or shape_body[contact_shape[k]] >= 0:
+        return
+    p = params[0]
+    n = contact_normal[k]
+    dist = wp.max(wp.dot(n, particle_q[pi] - contact_point[k]), 0.0)
+    if dist >= p.h:
+        return
+    u = dist / p.wall_table_step
+    j = wp.min(int(u), wall_table.shape[0] - 2)
+    t = u - float(j)
+    c = wall_table[j] * (1.0 - t) + wall_table[j + 1] * t
+    dc = wall_table_grad[j] * (1.0 - t) + wall_table_grad[j + 1] * t
+    wp.atomic_add(wall_c, slot, c * p.wall_scale)
+    wp.atomic_add(wall_grad, slot, n * (dc * p.wall_scale))
 
 
 @wp.kernel

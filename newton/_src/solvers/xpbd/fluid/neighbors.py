@@ -121,15 +121,18 @@ def gather_fluid_slots(
     sorted_particle: wp.array[wp.int32],
     sorted_xm: wp.array[wp.vec4],
     sorted_world: wp.array[wp.int32],
+    slot_of_particle: wp.array[wp.int32],
 ):
     i = wp.tid()
+    pi = fluid_particle[values[i]]
     if keys[i] > mask:
         sorted_particle[i] = -1
         sorted_world[i] = _NO_WORLD
+        slot_of_particle[pi] = -1
         return
-    pi = fluid_particle[values[i]]
     x = particle_q[pi]
     sorted_particle[i] = pi
+    slot_of_particle[pi] = i
     sorted_xm[i] = wp.vec4(x[0], x[1], x[2], particle_mass[pi])
     sorted_world[i] = particle_world[pi]
 
@@ -214,6 +217,7 @@ class FluidNeighborSearch:
 
     Args:
         fluid_particle: Particle indices of the fluid particles, shape ``(fluid_count,)``.
+        particle_count: Number of particles of the model.
         world_count: Number of worlds (world indices of fluid particles are in ``[-1, world_count)``).
         smoothing_length: Kernel support radius ``h`` [m]; also the cell edge.
         capacity: Neighbours stored per particle.
@@ -222,7 +226,13 @@ class FluidNeighborSearch:
     """
 
     def __init__(
-        self, fluid_particle: wp.array, world_count: int, smoothing_length: float, capacity: int, capped: bool
+        self,
+        fluid_particle: wp.array,
+        particle_count: int,
+        world_count: int,
+        smoothing_length: float,
+        capacity: int,
+        capped: bool,
     ):
         device = fluid_particle.device
         n = fluid_particle.shape[0]
@@ -248,6 +258,8 @@ class FluidNeighborSearch:
             self.sorted_particle = wp.full(n, -1, dtype=wp.int32)
             self.sorted_xm = wp.zeros(n, dtype=wp.vec4)
             self.sorted_world = wp.full(n, _NO_WORLD, dtype=wp.int32)
+            #: slot of every particle in this build, -1 for non-fluid and left-out particles
+            self.slot_of_particle = wp.full(particle_count, -1, dtype=wp.int32)
             self.neighbors = wp.zeros(self.capacity * n, dtype=wp.int32)
             self.neighbor_count = wp.zeros(n, dtype=wp.int32)
             self.candidate_count = wp.zeros(n, dtype=wp.int32)
@@ -286,7 +298,7 @@ class FluidNeighborSearch:
             gather_fluid_slots,
             dim=n,
             inputs=[self.keys, self.values, self.fluid_particle, particle_q, particle_mass, particle_world, self.mask],
-            outputs=[self.sorted_particle, self.sorted_xm, self.sorted_world],
+            outputs=[self.sorted_particle, self.sorted_xm, self.sorted_world, self.slot_of_particle],
             device=device,
         )
         wp.launch(

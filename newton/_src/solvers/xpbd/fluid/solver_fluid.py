@@ -22,6 +22,7 @@ import warp as wp
 from ....geometry import ParticleFlags
 from .kernels import (
     FluidParams,
+    accumulate_fluid_wall_density,
     apply_fluid_density_correction,
     apply_fluid_viscosity,
     apply_vorticity_confinement,
@@ -42,6 +43,8 @@ EPSILON_RELATIVE = 1.0e-3
 COHESION_DISPLACEMENT = 0.005
 # neighbours stored per particle for fluid_max_neighbors=0, as a multiple of the rest-lattice count
 FULL_NEIGHBOR_FACTOR = 4
+# samples of the wall density tables over [0, h]
+WALL_TABLE_SIZE = 64
 # zero of Akinci's cohesion spline, as a fraction of h: 2 (1-u)^3 u^3 = 1/64
 AKINCI_ZERO = 0.5 * (1.0 - math.sqrt(1.0 - 4.0 * (1.0 / 128.0) ** (1.0 / 3.0)))
 
@@ -127,6 +130,39 @@ def poly6_np(r2: np.ndarray, h: float) -> np.ndarray:
     return 315.0 / (64.0 * math.pi * h**9) * np.maximum(h * h - r2, 0.0) ** 3
 
 
+def wall_density_tables(rest_distance: float, h: float, mass: float, size: int = WALL_TABLE_SIZE):
+    """Poly6 density [kg/m^3] of a lattice at rest continued beyond a plane wall, and its derivative.
+
+    For a particle whose centre is ``delta`` from the wall (``delta`` sampled uniformly on
+    ``[0, h]``), the ghost lattice has layers at ``delta + d/2 + k d`` behind the wall: exactly
+    the layers a lattice would have if the fluid went on, when the particle touches the wall
+    (``delta = d/2``). The density is tapered to zero between ``0.75 d`` and ``d`` (where it is
+    below 5 % and 1 % of the lattice density) so that it vanishes before particle-shape contacts
+    end, at ``radius + soft_contact_gap``: with a gap of at least the radius it never jumps.
+
+    Returns:
+        tuple: densities and their derivatives against ``delta`` [kg/m^4], each of ``size`` samples.
+    """
+    d = rest_distance
+    n = int(math.ceil(h / d))
+    ab = np.arange(-n, n + 1) * d
+    plane = (ab[:, None] ** 2 + ab[None, :] ** 2).reshape(-1)
+    k = 315.0 / (64.0 * math.pi * h**9)
+    deltas = np.linspace(0.0, h, size)
+    rho = np.zeros(size)
+    grad = np.zeros(size)
+    for i, delta in enumerate(deltas):
+        z = delta + 0.5 * d + np.arange(n + 1) * d
+        q = np.maximum(h * h - plane[None, :] - z[:, None] ** 2, 0.0)
+        rho[i] = mass * k * (q**3).sum()
+        # d/d(delta) of (h^2 - r^2)^3 with dr^2/d(delta) = 2 z
+        grad[i] = mass * k * (-6.0 * z[:, None] * q**2).sum()
+    t = np.clip((deltas - 0.75 * d) / (0.25 * d), 0.0, 1.0)
+    window = 1.0 - t * t * (3.0 - 2.0 * t)
+    dwindow = np.where((t > 0.0) & (t < 1.0), -6.0 * t * (1.0 - t) / (0.25 * d), 0.0)
+    return rho * window, grad * window + rho * dwindow
+
+
 class FluidSolver:
     """Buffers and passes of the fluid solve for the fluid particles of ``model``.
 
@@ -163,7 +199,9 @@ class FluidSolver:
             self.fluid_particle = wp.array(fluid_particle.astype(np.int32), dtype=wp.int32)
             worlds = model.particle_world.numpy()[fluid_particle]
             world_count = int(worlds.max()) + 1 if len(worlds) else 0
-            self.search = FluidNeighborSearch(self.fluid_particle, world_count, h, capacity, capped)
+            self.search = FluidNeighborSearch(
+                self.fluid_particle, model.particle_count, world_count, h, capacity, capped
+            )
             n = self.fluid_count
             self.params = wp.zeros(1, dtype=FluidParams)
             # device flags of the optional passes, read by conditional graph nodes
@@ -173,12 +211,21 @@ class FluidSolver:
             self.lambdas = wp.zeros(n, dtype=float)
             self.sorted_v = wp.zeros(n, dtype=wp.vec3)
             self.vorticity = wp.zeros(n, dtype=wp.vec3)
+            # static walls' share of rho / rho0 and its gradient, per slot (zero without contacts)
+            self.wall_c = wp.zeros(n, dtype=float)
+            self.wall_grad = wp.zeros(n, dtype=wp.vec3)
+            wall_rho, wall_drho = wall_density_tables(d, h, self.mean_mass)
+            self.wall_table = wp.array(wall_rho / self.lattice_density, dtype=float)
+            self.wall_table_grad = wp.array(wall_drho / self.lattice_density, dtype=float)
             self.last_finite_q = wp.array(model.particle_q.numpy()[fluid_particle], dtype=wp.vec3)
             self.nonfinite_count = wp.zeros(1, dtype=wp.int32)
             #: density of every particle at the state of the last :meth:`diagnostics` call [kg/m^3] (0 for non-fluid)
             self.particle_density = wp.zeros(model.particle_count, dtype=float)
             self._summary = wp.zeros(_SUMMARY_SIZE, dtype=float)
         self._slots_hold_positions = False
+        #: particle-shape contacts of the step in progress (set by the solver), for the wall density
+        self.contacts = None
+        self._has_walls = bool(model.shape_count) and bool((model.shape_body.numpy() < 0).any())
         self.update_params()
 
     @property
@@ -210,6 +257,8 @@ class FluidSolver:
         p.cohesion_out = (1.0 - AKINCI_ZERO) / (h - d)
         p.viscosity = c.fluid_viscosity
         p.vorticity = c.fluid_vorticity
+        p.wall_scale = self.lattice_density / self.rest_density
+        p.wall_table_step = h / (WALL_TABLE_SIZE - 1)
         self.params.assign(wp.array([p], dtype=FluidParams, device="cpu"))
         self._velocity_pass_on.fill_(int(c.fluid_viscosity > 0.0 or c.fluid_vorticity > 0.0))
         self._vorticity_pass_on.fill_(int(c.fluid_vorticity > 0.0))
@@ -239,6 +288,7 @@ class FluidSolver:
             )
         # after this iteration's correction, the gathered positions are out of date
         self._slots_hold_positions = False
+        self._accumulate_walls(particle_q)
         self._evaluate_constraint()
         wp.launch(
             apply_fluid_density_correction,
@@ -249,9 +299,40 @@ class FluidSolver:
                 s.sorted_xm,
                 *self._neighbor_inputs(),
                 self.lambdas,
+                self.wall_grad,
                 m.particle_inv_mass,
             ],
             outputs=[particle_deltas],
+            device=self.device,
+        )
+
+    def _accumulate_walls(self, particle_q: wp.array) -> None:
+        """Wall density of the fluid particles at ``particle_q`` from the step's particle-shape contacts."""
+        if not self._has_walls:
+            return
+        self.wall_c.zero_()
+        self.wall_grad.zero_()
+        contacts = self.contacts
+        if contacts is None:
+            return
+        wp.launch(
+            accumulate_fluid_wall_density,
+            dim=contacts.soft_contact_max,
+            inputs=[
+                self.params,
+                contacts.soft_contact_count,
+                contacts.soft_contact_particle,
+                contacts.soft_contact_shape,
+                contacts.soft_contact_body_pos,
+                contacts.soft_contact_normal,
+                contacts.soft_contact_max,
+                self.model.shape_body,
+                self.search.slot_of_particle,
+                particle_q,
+                self.wall_table,
+                self.wall_table_grad,
+            ],
+            outputs=[self.wall_c, self.wall_grad],
             device=self.device,
         )
 
@@ -261,7 +342,14 @@ class FluidSolver:
         wp.launch(
             compute_fluid_density_lambda,
             dim=self.fluid_count,
-            inputs=[self.params, s.sorted_particle, s.sorted_xm, *self._neighbor_inputs()],
+            inputs=[
+                self.params,
+                s.sorted_particle,
+                s.sorted_xm,
+                *self._neighbor_inputs(),
+                self.wall_c,
+                self.wall_grad,
+            ],
             outputs=[self.density, self.lambdas],
             device=self.device,
         )
@@ -332,6 +420,9 @@ class FluidSolver:
         """Density and neighbourhood statistics of the fluid at ``state`` (synchronises; not for the hot loop)."""
         s, n = self.search, self.fluid_count
         self.build_neighborhood(state.particle_q)
+        # the statistics are of the fluid's own kernel sum
+        self.wall_c.zero_()
+        self.wall_grad.zero_()
         self._evaluate_constraint()
         self._slots_hold_positions = False
         self._summary.assign(np.array(_SUMMARY_INIT, dtype=np.float32))
