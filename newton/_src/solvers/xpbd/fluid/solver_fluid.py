@@ -40,7 +40,7 @@ MAX_CORRECTION_FRACTION = 0.5
 # lambda regulariser relative to sum |grad C|^2 of the rest lattice (constraint softening ~1e-3)
 EPSILON_RELATIVE = 1.0e-3
 # cohesion 1 moves a surface particle by at most ~this fraction of the rest distance per iteration
-COHESION_DISPLACEMENT = 0.005
+COHESION_DISPLACEMENT = 0.0025
 # neighbours stored per particle for fluid_max_neighbors=0, as a multiple of the rest-lattice count
 FULL_NEIGHBOR_FACTOR = 4
 # samples of the wall density tables over [0, h]
