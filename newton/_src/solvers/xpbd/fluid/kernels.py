@@ -4,11 +4,11 @@
 """Warp kernels of the position-based fluid (PBF) solve.
 
 All per-particle passes run over the fluid particles in *sorted slot* order (see
-:mod:`.neighbors`): slot ``i`` holds particle ``sorted_particle[i]`` (``-1`` for a slot
+:mod:`.neighbors`): slot ``i`` holds particle ``slots.particle[i]`` (``-1`` for a slot
 whose particle is inactive or non-finite), its neighbours are slots too, and the
 current positions and masses of all slots are gathered once per pass into
-``sorted_xm`` (``xyz`` = position [m], ``w`` = mass [kg]) so that neighbour reads are
-coherent.
+``slots.xm`` (``xyz`` = position [m], ``w`` = mass [kg]) so that neighbour reads are
+coherent. :class:`FluidSlots` bundles these arrays.
 
 Scalar parameters are read from a one-element :class:`FluidParams` array, not passed
 by value, so that changing them between steps also changes a captured CUDA graph.
@@ -51,6 +51,17 @@ class FluidParams:
     vorticity: float  # confinement strength [m/s]
     wall_scale: float  # lattice density / rest density: converts the wall tables to constraint units
     wall_table_step: float  # wall distance between table samples [m]
+
+
+@wp.struct
+class FluidSlots:
+    """The fluid particles in sorted slot order and their neighbour lists (see :mod:`.neighbors`)."""
+
+    particle: wp.array[wp.int32]  # particle index of each slot, -1 for a left-out particle
+    xm: wp.array[wp.vec4]  # gathered position [m] (xyz) and mass [kg] (w)
+    neighbors: wp.array[wp.int32]  # neighbour slots, transposed: neighbors[k * slot_count + i]
+    neighbor_count: wp.array[wp.int32]  # neighbours found (may exceed capacity)
+    capacity: int  # neighbours stored per slot
 
 
 @wp.func
@@ -118,9 +129,15 @@ def akinci_cohesion(dist: float, p: FluidParams):
 
 
 @wp.func
-def fluid_neighbor(neighbors: wp.array[wp.int32], slot_count: int, i: int, k: int):
+def fluid_neighbor(slots: FluidSlots, i: int, k: int):
     """Slot of the ``k``-th neighbour of slot ``i`` (lists are stored transposed for coalescing)."""
-    return neighbors[k * slot_count + i]
+    return slots.neighbors[k * slots.particle.shape[0] + i]
+
+
+@wp.func
+def fluid_neighbor_count(slots: FluidSlots, i: int):
+    """Number of stored neighbours of slot ``i``."""
+    return wp.min(slots.neighbor_count[i], slots.capacity)
 
 
 @wp.func
@@ -163,45 +180,40 @@ def correction_term(
 
 @wp.kernel
 def gather_fluid_positions(
-    sorted_particle: wp.array[wp.int32],
+    slots: FluidSlots,
     particle_q: wp.array[wp.vec3],
     particle_mass: wp.array[float],
-    sorted_xm: wp.array[wp.vec4],
 ):
     i = wp.tid()
-    pi = sorted_particle[i]
+    pi = slots.particle[i]
     if pi < 0:
         return
     x = particle_q[pi]
-    sorted_xm[i] = wp.vec4(x[0], x[1], x[2], particle_mass[pi])
+    slots.xm[i] = wp.vec4(x[0], x[1], x[2], particle_mass[pi])
 
 
 @wp.kernel
 def gather_fluid_state(
-    sorted_particle: wp.array[wp.int32],
+    slots: FluidSlots,
     particle_q: wp.array[wp.vec3],
     particle_qd: wp.array[wp.vec3],
     particle_mass: wp.array[float],
-    sorted_xm: wp.array[wp.vec4],
+    # outputs
     sorted_v: wp.array[wp.vec3],
 ):
     i = wp.tid()
-    pi = sorted_particle[i]
+    pi = slots.particle[i]
     if pi < 0:
         return
     x = particle_q[pi]
-    sorted_xm[i] = wp.vec4(x[0], x[1], x[2], particle_mass[pi])
+    slots.xm[i] = wp.vec4(x[0], x[1], x[2], particle_mass[pi])
     sorted_v[i] = particle_qd[pi]
 
 
 @wp.kernel
 def compute_fluid_density_lambda(
     params: wp.array[FluidParams],
-    sorted_particle: wp.array[wp.int32],
-    sorted_xm: wp.array[wp.vec4],
-    neighbors: wp.array[wp.int32],
-    neighbor_count: wp.array[wp.int32],
-    max_neighbors: int,
+    slots: FluidSlots,
     wall_c: wp.array[float],
     wall_grad: wp.array[wp.vec3],
     # outputs
@@ -214,24 +226,23 @@ def compute_fluid_density_lambda(
     :func:`accumulate_fluid_wall_density`; zero away from walls).
     """
     i = wp.tid()
-    pi = sorted_particle[i]
+    pi = slots.particle[i]
     if pi < 0:
         return
     p = params[0]
-    slot_count = sorted_particle.shape[0]
-    xi4 = sorted_xm[i]
+    xi4 = slots.xm[i]
     xi = wp.vec3(xi4[0], xi4[1], xi4[2])
     rho = xi4[3] * poly6(0.0, p)
     grad_i = wp.vec3(0.0)
     grad_sq = float(0.0)
-    count = wp.min(neighbor_count[i], max_neighbors)
+    count = fluid_neighbor_count(slots, i)
     # two neighbours per trip: their loads are independent and overlap
     k = int(0)
     while k + 1 < count:
-        j0 = fluid_neighbor(neighbors, slot_count, i, k)
-        j1 = fluid_neighbor(neighbors, slot_count, i, k + 1)
-        t0 = density_term(xi, sorted_xm[j0], pi, sorted_particle, j0, p)
-        t1 = density_term(xi, sorted_xm[j1], pi, sorted_particle, j1, p)
+        j0 = fluid_neighbor(slots, i, k)
+        j1 = fluid_neighbor(slots, i, k + 1)
+        t0 = density_term(xi, slots.xm[j0], pi, slots.particle, j0, p)
+        t1 = density_term(xi, slots.xm[j1], pi, slots.particle, j1, p)
         g0 = wp.vec3(t0[0], t0[1], t0[2])
         g1 = wp.vec3(t1[0], t1[1], t1[2])
         rho += t0[3] + t1[3]
@@ -239,8 +250,8 @@ def compute_fluid_density_lambda(
         grad_sq += wp.dot(g0, g0) + wp.dot(g1, g1)
         k += 2
     if k < count:
-        j = fluid_neighbor(neighbors, slot_count, i, k)
-        t = density_term(xi, sorted_xm[j], pi, sorted_particle, j, p)
+        j = fluid_neighbor(slots, i, k)
+        t = density_term(xi, slots.xm[j], pi, slots.particle, j, p)
         g = wp.vec3(t[0], t[1], t[2])
         rho += t[3]
         grad_i += g
@@ -255,40 +266,44 @@ def compute_fluid_density_lambda(
 @wp.kernel
 def apply_fluid_density_correction(
     params: wp.array[FluidParams],
-    sorted_particle: wp.array[wp.int32],
-    sorted_xm: wp.array[wp.vec4],
-    neighbors: wp.array[wp.int32],
-    neighbor_count: wp.array[wp.int32],
-    max_neighbors: int,
+    slots: FluidSlots,
     lambdas: wp.array[float],
-    wall_grad: wp.array[wp.vec3],
     particle_inv_mass: wp.array[float],
     # outputs
     particle_deltas: wp.array[wp.vec3],
+    wall_c: wp.array[float],
+    wall_grad: wp.array[wp.vec3],
 ):
-    """Add the density correction and the cohesion bias of slot ``i`` to its particle's Jacobi delta."""
+    """Add the density correction and the cohesion bias of slot ``i`` to its particle's Jacobi delta.
+
+    Also clears the slot's wall share, which this iteration has used, for the next accumulation.
+    """
     i = wp.tid()
-    pi = sorted_particle[i]
-    if pi < 0 or particle_inv_mass[pi] == 0.0:
+    pi = slots.particle[i]
+    if pi < 0:
+        return
+    wall_g = wall_grad[i]
+    wall_grad[i] = wp.vec3(0.0)
+    wall_c[i] = 0.0
+    if particle_inv_mass[pi] == 0.0:
         return
     p = params[0]
-    slot_count = sorted_particle.shape[0]
-    xi4 = sorted_xm[i]
+    xi4 = slots.xm[i]
     lam_i = lambdas[i]
     acc = wp.spatial_vector(wp.vec3(0.0), wp.vec3(0.0))
-    count = wp.min(neighbor_count[i], max_neighbors)
+    count = fluid_neighbor_count(slots, i)
     # two neighbours per trip: their loads are independent and overlap
     k = int(0)
     while k + 1 < count:
-        j0 = fluid_neighbor(neighbors, slot_count, i, k)
-        j1 = fluid_neighbor(neighbors, slot_count, i, k + 1)
-        acc += correction_term(xi4, lam_i, sorted_xm[j0], lambdas[j0], pi, sorted_particle, j0, p)
-        acc += correction_term(xi4, lam_i, sorted_xm[j1], lambdas[j1], pi, sorted_particle, j1, p)
+        j0 = fluid_neighbor(slots, i, k)
+        j1 = fluid_neighbor(slots, i, k + 1)
+        acc += correction_term(xi4, lam_i, slots.xm[j0], lambdas[j0], pi, slots.particle, j0, p)
+        acc += correction_term(xi4, lam_i, slots.xm[j1], lambdas[j1], pi, slots.particle, j1, p)
         k += 2
     if k < count:
-        j = fluid_neighbor(neighbors, slot_count, i, k)
-        acc += correction_term(xi4, lam_i, sorted_xm[j], lambdas[j], pi, sorted_particle, j, p)
-    dx = wp.spatial_top(acc) + wall_grad[i] * lam_i
+        j = fluid_neighbor(slots, i, k)
+        acc += correction_term(xi4, lam_i, slots.xm[j], lambdas[j], pi, slots.particle, j, p)
+    dx = wp.spatial_top(acc) + wall_g * lam_i
     coh = wp.spatial_bottom(acc)
     dx *= p.relaxation
     dx_len = wp.length(dx)
@@ -308,12 +323,8 @@ def apply_fluid_density_correction(
 @wp.kernel
 def apply_fluid_viscosity(
     params: wp.array[FluidParams],
-    sorted_particle: wp.array[wp.int32],
-    sorted_xm: wp.array[wp.vec4],
+    slots: FluidSlots,
     sorted_v: wp.array[wp.vec3],
-    neighbors: wp.array[wp.int32],
-    neighbor_count: wp.array[wp.int32],
-    max_neighbors: int,
     density: wp.array[float],
     # outputs
     particle_qd: wp.array[wp.vec3],
@@ -326,23 +337,22 @@ def apply_fluid_viscosity(
     estimates the vorticity ``omega_i = sum_j V_j (v_j - v_i) x grad W_ij`` for the confinement pass.
     """
     i = wp.tid()
-    pi = sorted_particle[i]
+    pi = slots.particle[i]
     if pi < 0:
         return
     p = params[0]
     compute_vorticity = p.vorticity > 0.0
-    slot_count = sorted_particle.shape[0]
-    xi4 = sorted_xm[i]
+    xi4 = slots.xm[i]
     xi = wp.vec3(xi4[0], xi4[1], xi4[2])
     vi = sorted_v[i]
     w_self = xi4[3] / wp.max(density[i], 1.0e-6) * poly6(0.0, p)
     num = vi * w_self
     den = w_self
     omega = wp.vec3(0.0)
-    count = wp.min(neighbor_count[i], max_neighbors)
+    count = fluid_neighbor_count(slots, i)
     for k in range(count):
-        j = fluid_neighbor(neighbors, slot_count, i, k)
-        xj4 = sorted_xm[j]
+        j = fluid_neighbor(slots, i, k)
+        xj4 = slots.xm[j]
         r = xi - wp.vec3(xj4[0], xj4[1], xj4[2])
         r2 = wp.dot(r, r)
         if r2 < p.h2:
@@ -352,7 +362,7 @@ def apply_fluid_viscosity(
             num += vj * w
             den += w
             if compute_vorticity:
-                omega += wp.cross(vj - vi, spiky_gradient(r, r2, pi, sorted_particle, j, p)) * vol_j
+                omega += wp.cross(vj - vi, spiky_gradient(r, r2, pi, slots.particle, j, p)) * vol_j
     if p.viscosity > 0.0:
         particle_qd[pi] = vi + (num / den - vi) * p.viscosity
     if compute_vorticity:
@@ -362,11 +372,7 @@ def apply_fluid_viscosity(
 @wp.kernel
 def apply_vorticity_confinement(
     params: wp.array[FluidParams],
-    sorted_particle: wp.array[wp.int32],
-    sorted_xm: wp.array[wp.vec4],
-    neighbors: wp.array[wp.int32],
-    neighbor_count: wp.array[wp.int32],
-    max_neighbors: int,
+    slots: FluidSlots,
     density: wp.array[float],
     vorticity: wp.array[wp.vec3],
     dt: float,
@@ -375,23 +381,22 @@ def apply_vorticity_confinement(
 ):
     """Vorticity confinement: ``v_i += dt * eps * (N x omega_i)`` with ``N`` the normalised gradient of ``|omega|``."""
     i = wp.tid()
-    pi = sorted_particle[i]
+    pi = slots.particle[i]
     if pi < 0:
         return
     p = params[0]
-    slot_count = sorted_particle.shape[0]
-    xi4 = sorted_xm[i]
+    xi4 = slots.xm[i]
     xi = wp.vec3(xi4[0], xi4[1], xi4[2])
     eta = wp.vec3(0.0)
-    count = wp.min(neighbor_count[i], max_neighbors)
+    count = fluid_neighbor_count(slots, i)
     for k in range(count):
-        j = fluid_neighbor(neighbors, slot_count, i, k)
-        xj4 = sorted_xm[j]
+        j = fluid_neighbor(slots, i, k)
+        xj4 = slots.xm[j]
         r = xi - wp.vec3(xj4[0], xj4[1], xj4[2])
         r2 = wp.dot(r, r)
         if r2 < p.h2:
             vol_j = xj4[3] / wp.max(density[j], 1.0e-6)
-            eta += spiky_gradient(r, r2, pi, sorted_particle, j, p) * (vol_j * wp.length(vorticity[j]))
+            eta += spiky_gradient(r, r2, pi, slots.particle, j, p) * (vol_j * wp.length(vorticity[j]))
     # grad W points from j to i, so -eta points toward larger |omega|
     eta_len = wp.length(eta)
     if eta_len > 1.0e-9:
@@ -417,7 +422,9 @@ def accumulate_fluid_wall_density(
     wall_c: wp.array[float],
     wall_grad: wp.array[wp.vec3],
 ):
-    """Density a static wall lends to a fluid particle near it, from the particle-shape contacts.
+    """Add the density a static wall lends to a fluid particle near it, from the particle-shape contacts.
+
+    ``wall_c`` and ``wall_grad`` must be zero on entry (the correction pass clears them after use).
 
     The fluid would continue beyond the wall as a lattice at rest; the tables hold that ghost
     fluid's poly6 density (over the lattice density) and its derivative against the distance

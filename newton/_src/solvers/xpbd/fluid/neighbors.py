@@ -26,6 +26,7 @@ import numpy as np
 import warp as wp
 
 from ....geometry import ParticleFlags
+from .kernels import FluidSlots
 
 # sentinel world index of a slot with no particle; real world indices are >= -1
 _NO_WORLD = -2
@@ -263,6 +264,13 @@ class FluidNeighborSearch:
             self.neighbors = wp.zeros(self.capacity * n, dtype=wp.int32)
             self.neighbor_count = wp.zeros(n, dtype=wp.int32)
             self.candidate_count = wp.zeros(n, dtype=wp.int32)
+        #: the slot arrays as one kernel argument
+        self.slots = FluidSlots()
+        self.slots.particle = self.sorted_particle
+        self.slots.xm = self.sorted_xm
+        self.slots.neighbors = self.neighbors
+        self.slots.neighbor_count = self.neighbor_count
+        self.slots.capacity = self.capacity
 
     def build(self, particle_q: wp.array, particle_mass: wp.array, particle_flags: wp.array, particle_world: wp.array):
         """Sort the fluid particles at ``particle_q`` and rebuild all neighbour lists (no allocation, no sync).

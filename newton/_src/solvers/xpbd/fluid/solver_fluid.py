@@ -22,6 +22,7 @@ import warp as wp
 from ....geometry import ParticleFlags
 from .kernels import (
     FluidParams,
+    FluidSlots,
     accumulate_fluid_wall_density,
     apply_fluid_density_correction,
     apply_fluid_viscosity,
@@ -271,10 +272,6 @@ class FluidSolver:
         # the build gathered these positions into slot order: the first iteration uses them as they are
         self._slots_hold_positions = True
 
-    def _neighbor_inputs(self):
-        s = self.search
-        return [s.neighbors, s.neighbor_count, s.capacity]
-
     def solve_density(self, particle_q: wp.array, particle_deltas: wp.array) -> None:
         """One Jacobi iteration of the density constraint: add its correction to ``particle_deltas``."""
         s, m, n = self.search, self.model, self.fluid_count
@@ -282,8 +279,7 @@ class FluidSolver:
             wp.launch(
                 gather_fluid_positions,
                 dim=n,
-                inputs=[s.sorted_particle, particle_q, m.particle_mass],
-                outputs=[s.sorted_xm],
+                inputs=[s.slots, particle_q, m.particle_mass],
                 device=self.device,
             )
         # after this iteration's correction, the gathered positions are out of date
@@ -293,27 +289,15 @@ class FluidSolver:
         wp.launch(
             apply_fluid_density_correction,
             dim=n,
-            inputs=[
-                self.params,
-                s.sorted_particle,
-                s.sorted_xm,
-                *self._neighbor_inputs(),
-                self.lambdas,
-                self.wall_grad,
-                m.particle_inv_mass,
-            ],
-            outputs=[particle_deltas],
+            inputs=[self.params, s.slots, self.lambdas, m.particle_inv_mass],
+            outputs=[particle_deltas, self.wall_c, self.wall_grad],
             device=self.device,
         )
 
     def _accumulate_walls(self, particle_q: wp.array) -> None:
         """Wall density of the fluid particles at ``particle_q`` from the step's particle-shape contacts."""
-        if not self._has_walls:
-            return
-        self.wall_c.zero_()
-        self.wall_grad.zero_()
         contacts = self.contacts
-        if contacts is None:
+        if not self._has_walls or contacts is None:
             return
         wp.launch(
             accumulate_fluid_wall_density,
@@ -337,19 +321,12 @@ class FluidSolver:
         )
 
     def _evaluate_constraint(self) -> None:
-        """Density and multipliers at the positions gathered in :attr:`FluidNeighborSearch.sorted_xm`."""
+        """Density and multipliers at the positions gathered in ``slots.xm``."""
         s = self.search
         wp.launch(
             compute_fluid_density_lambda,
             dim=self.fluid_count,
-            inputs=[
-                self.params,
-                s.sorted_particle,
-                s.sorted_xm,
-                *self._neighbor_inputs(),
-                self.wall_c,
-                self.wall_grad,
-            ],
+            inputs=[self.params, s.slots, self.wall_c, self.wall_grad],
             outputs=[self.density, self.lambdas],
             device=self.device,
         )
@@ -384,14 +361,14 @@ class FluidSolver:
         wp.launch(
             gather_fluid_state,
             dim=n,
-            inputs=[s.sorted_particle, state_out.particle_q, state_out.particle_qd, m.particle_mass],
-            outputs=[s.sorted_xm, self.sorted_v],
+            inputs=[s.slots, state_out.particle_q, state_out.particle_qd, m.particle_mass],
+            outputs=[self.sorted_v],
             device=self.device,
         )
         wp.launch(
             apply_fluid_viscosity,
             dim=n,
-            inputs=[self.params, s.sorted_particle, s.sorted_xm, self.sorted_v, *self._neighbor_inputs(), self.density],
+            inputs=[self.params, s.slots, self.sorted_v, self.density],
             outputs=[state_out.particle_qd, self.vorticity],
             device=self.device,
         )
@@ -401,15 +378,7 @@ class FluidSolver:
         wp.launch(
             apply_vorticity_confinement,
             dim=self.fluid_count,
-            inputs=[
-                self.params,
-                s.sorted_particle,
-                s.sorted_xm,
-                *self._neighbor_inputs(),
-                self.density,
-                self.vorticity,
-                dt,
-            ],
+            inputs=[self.params, s.slots, self.density, self.vorticity, dt],
             outputs=[state_out.particle_qd],
             device=self.device,
         )
@@ -420,16 +389,14 @@ class FluidSolver:
         """Density and neighbourhood statistics of the fluid at ``state`` (synchronises; not for the hot loop)."""
         s, n = self.search, self.fluid_count
         self.build_neighborhood(state.particle_q)
-        # the statistics are of the fluid's own kernel sum
-        self.wall_c.zero_()
-        self.wall_grad.zero_()
+        # the statistics are of the fluid's own kernel sum (the wall shares are zero between steps)
         self._evaluate_constraint()
         self._slots_hold_positions = False
         self._summary.assign(np.array(_SUMMARY_INIT, dtype=np.float32))
         wp.launch(
             summarize_fluid_density,
             dim=n,
-            inputs=[self.params, s.sorted_particle, self.density, s.neighbor_count, s.candidate_count, s.capacity],
+            inputs=[self.params, s.slots, self.density, s.candidate_count],
             outputs=[self.particle_density, self._summary],
             device=self.device,
         )
@@ -461,23 +428,21 @@ _SUMMARY_INIT = [0.0, 0.0, 0.0, 0.0, 0.0, 3.0e38, 0.0, 0.0, 0.0, 0.0]
 @wp.kernel
 def summarize_fluid_density(
     params: wp.array[FluidParams],
-    sorted_particle: wp.array[wp.int32],
+    slots: FluidSlots,
     density: wp.array[float],
-    neighbor_count: wp.array[wp.int32],
     candidate_count: wp.array[wp.int32],
-    capacity: int,
     # outputs
     particle_density: wp.array[float],
     summary: wp.array[float],
 ):
     i = wp.tid()
-    pi = sorted_particle[i]
+    pi = slots.particle[i]
     if pi < 0:
         return
     rho = density[i]
     particle_density[pi] = rho
     e = rho * params[0].inv_rest_density - 1.0
-    nb = float(neighbor_count[i])
+    nb = float(slots.neighbor_count[i])
     wp.atomic_add(summary, 0, 1.0)
     wp.atomic_add(summary, 1, wp.abs(e))
     wp.atomic_max(summary, 2, wp.abs(e))
@@ -486,7 +451,7 @@ def summarize_fluid_density(
     wp.atomic_min(summary, 5, nb)
     wp.atomic_add(summary, 6, nb)
     wp.atomic_max(summary, 7, nb)
-    if neighbor_count[i] > capacity:
+    if slots.neighbor_count[i] > slots.capacity:
         wp.atomic_add(summary, 8, 1.0)
     wp.atomic_add(summary, 9, float(candidate_count[i]))
 
