@@ -111,7 +111,7 @@ def run(args) -> dict:
     )
     # contacts reach one diameter from the surface, where the walls' ghost density has vanished
     collision = newton.CollisionPipeline(
-        model, soft_contact_max=2 * model.particle_count, soft_contact_gap=0.5 * spacing
+        model, soft_contact_max=model.particle_count, soft_contact_gap=0.5 * spacing
     )
     hw = scene["half_width"]
     walls = [

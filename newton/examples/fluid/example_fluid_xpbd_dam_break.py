@@ -114,7 +114,7 @@ class Example:
         self.state_1 = self.model.state()
         # contacts reach one diameter from a surface, so particles near walls see the walls' density
         self.collision = newton.CollisionPipeline(
-            self.model, soft_contact_max=2 * self.model.particle_count, soft_contact_gap=0.5 * spacing
+            self.model, soft_contact_max=self.model.particle_count, soft_contact_gap=0.5 * spacing
         )
         self.contacts = self.collision.contacts()
         self.viewer.set_model(self.model)
