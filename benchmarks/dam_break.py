@@ -110,9 +110,7 @@ def run(args) -> dict:
         fluid_relaxation=args.relaxation,
     )
     # contacts reach one diameter from the surface, where the walls' ghost density has vanished
-    collision = newton.CollisionPipeline(
-        model, soft_contact_max=model.particle_count, soft_contact_gap=0.5 * spacing
-    )
+    collision = newton.CollisionPipeline(model, soft_contact_max=model.particle_count, soft_contact_gap=0.5 * spacing)
     hw = scene["half_width"]
     walls = [
         ((0.0, 0.0, 1.0), 0.0),
@@ -154,6 +152,19 @@ def run(args) -> dict:
             q = states[0].particle_q.numpy().astype(np.float64)
             errors.append(measure_density_error(q, 1000.0 * spacing**3, spacing, solver.fluid_smoothing_length, walls))
 
+        render_ms = None
+        if graph is not None:
+            # cost of the render particles (smoothed centres and ellipsoids), captured and replayed
+            solver.update_render_particles(states[0])
+            with wp.ScopedCapture() as capture:
+                solver.update_render_particles(states[0])
+            wp.synchronize_device(device)
+            t0 = time.perf_counter()
+            for _ in range(50):
+                wp.capture_launch(capture.graph)
+            wp.synchronize_device(device)
+            render_ms = (time.perf_counter() - t0) * 1000.0 / 50
+
     density = {k: float(np.mean([e[k] for e in errors])) for k in errors[0]}
     for key in ("max_compression", "max_compression_walls"):
         density[key] = float(max(e[key] for e in errors))
@@ -178,6 +189,7 @@ def run(args) -> dict:
         "ms_per_frame_median": statistics.median(trials),
         "ms_per_frame_trials": trials,
         **density,
+        "update_render_particles_ms": render_ms,
         "kernel_ms_per_frame": breakdown,
     }
 
@@ -211,6 +223,8 @@ def main(argv=None):
         f"{r['device']:<24}{r['particles']:>10}{r['substeps']:>9}{r['iterations']:>6}"
         f"{r['ms_per_frame_median']:>10.3f}{fluid}{'':>14}{walls}"
     )
+    if r["update_render_particles_ms"] is not None:
+        print(f"update_render_particles: {r['update_render_particles_ms']:.3f} ms (graph replay)")
     if r["kernel_ms_per_frame"]:
         print("per-kernel GPU time of one frame [ms] (launches):")
         for name, t, c in r["kernel_ms_per_frame"][:25]:

@@ -13,7 +13,7 @@ imported directly) and adds to ``SolverXPBD``:
   other particle constraints accumulated their Jacobi deltas);
 - a wrapped ``step`` (fluid-fluid pairs skipped by particle contacts, and after the step: viscosity,
   vorticity confinement, non-finite recovery);
-- :meth:`fluid_diagnostics`.
+- :meth:`fluid_diagnostics` and :meth:`update_render_particles`.
 
 Solvers whose model has no fluid particle take none of these paths.
 """
@@ -90,6 +90,13 @@ def _make_property(name: str, mutable: bool):
     return property(fget, fset if mutable else None, doc=doc)
 
 
+def _render_property(name: str):
+    return property(
+        lambda self: None if self._fluid is None else getattr(self._fluid, name),
+        doc=f"Result of :meth:`update_render_particles` (``None`` before the first call): see there for ``{name}``.",
+    )
+
+
 def fluid_diagnostics(self, state) -> dict:
     """Density and neighbourhood statistics of the fluid at ``state``.
 
@@ -112,6 +119,40 @@ def fluid_diagnostics(self, state) -> dict:
     if self._fluid is None:
         return {}
     return self._fluid.diagnostics(state)
+
+
+def update_render_particles(
+    self,
+    state,
+    smoothing: float = 0.5,
+    anisotropy_scale: float = 1.0,
+    anisotropy_min: float = 0.25,
+    anisotropy_max: float = 2.0,
+) -> None:
+    """Compute render positions and anisotropic ellipsoids of the particles at ``state`` for drawing.
+
+    Fluid particles get a smoothed centre and three ellipsoid axes from the weighted covariance of
+    their neighbourhood (Yu & Turk 2013): flat in sheets, long in strands, round inside. Other
+    particles keep their position with round axes. The results, each a ``wp.array`` of
+    ``particle_count`` on the model's device, are
+
+    - :attr:`render_positions` (``wp.vec3`` [m]): ``(1 - smoothing) x + smoothing x_bar``;
+    - :attr:`render_anisotropy`, :attr:`render_anisotropy_secondary`, :attr:`render_anisotropy_tertiary`
+      (``wp.vec4``): the longest, middle and shortest axis, ``xyz`` a unit direction in world space and
+      ``w`` the radius scale along it (multiply the particle's drawn radius by it).
+
+    Nothing here changes the next simulation step; no host synchronisation, so it can be captured.
+
+    Args:
+        state: The state to draw.
+        smoothing: Blend from the simulated position toward the neighbourhood mean, in [0, 1].
+        anisotropy_scale: Multiplier of all three radius scales, > 0.
+        anisotropy_min: Smallest radius scale before ``anisotropy_scale``, in (0, 1].
+        anisotropy_max: Largest radius scale before ``anisotropy_scale``, >= 1.
+    """
+    if self._fluid is None:
+        raise ValueError("update_render_particles needs a model with fluid particles (ParticleFlags.FLUID)")
+    self._fluid.update_render_particles(state, smoothing, anisotropy_scale, anisotropy_min, anisotropy_max)
 
 
 def activate(xpbd_module) -> None:
@@ -173,6 +214,14 @@ def activate(xpbd_module) -> None:
     cls._apply_particle_deltas = _apply_particle_deltas
     cls.step = step
     cls.fluid_diagnostics = fluid_diagnostics
+    cls.update_render_particles = update_render_particles
+    for name in (
+        "render_positions",
+        "render_anisotropy",
+        "render_anisotropy_secondary",
+        "render_anisotropy_tertiary",
+    ):
+        setattr(cls, name, _render_property(name))
     cls.fluid_density = property(
         lambda self: None if self._fluid is None else self._fluid.particle_density,
         doc="Per-particle density [kg/m^3] at the state of the last :meth:`fluid_diagnostics` call "

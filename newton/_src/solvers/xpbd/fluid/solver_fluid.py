@@ -33,6 +33,7 @@ from .kernels import (
     recover_nonfinite_fluid,
 )
 from .neighbors import FluidNeighborSearch
+from .render_particles import compute_fluid_render_particles, reset_render_particles
 
 # smoothing length h = DEFAULT_SMOOTHING_RATIO * rest distance unless given
 DEFAULT_SMOOTHING_RATIO = 1.8
@@ -224,6 +225,11 @@ class FluidSolver:
             self.particle_density = wp.zeros(model.particle_count, dtype=float)
             self._summary = wp.zeros(_SUMMARY_SIZE, dtype=float)
         self._slots_hold_positions = False
+        # render particles, allocated by the first update_render_particles()
+        self.render_positions = None
+        self.render_anisotropy = None
+        self.render_anisotropy_secondary = None
+        self.render_anisotropy_tertiary = None
         #: particle-shape contacts of the step in progress (set by the solver), for the wall density
         self.contacts = None
         self._has_walls = bool(model.shape_count) and bool((model.shape_body.numpy() < 0).any())
@@ -380,6 +386,42 @@ class FluidSolver:
             dim=self.fluid_count,
             inputs=[self.params, s.slots, self.density, self.vorticity, dt],
             outputs=[state_out.particle_qd],
+            device=self.device,
+        )
+
+    # --- render particles ------------------------------------------------------------------------
+
+    def update_render_particles(
+        self, state, smoothing: float, anisotropy_scale: float, anisotropy_min: float, anisotropy_max: float
+    ) -> None:
+        """Smoothed positions and ellipsoid axes of every particle at ``state`` (see :mod:`.render_particles`)."""
+        smoothing = _real("smoothing", smoothing, 0.0, 1.0)
+        anisotropy_scale = _real("anisotropy_scale", anisotropy_scale, 0.0, lo_open=True)
+        anisotropy_min = _real("anisotropy_min", anisotropy_min, 0.0, 1.0, lo_open=True)
+        anisotropy_max = _real("anisotropy_max", anisotropy_max, 1.0)
+        if self.render_positions is None:
+            with wp.ScopedDevice(self.device):
+                n = self.model.particle_count
+                self.render_positions = wp.zeros(n, dtype=wp.vec3)
+                self.render_anisotropy = wp.zeros(n, dtype=wp.vec4)
+                self.render_anisotropy_secondary = wp.zeros(n, dtype=wp.vec4)
+                self.render_anisotropy_tertiary = wp.zeros(n, dtype=wp.vec4)
+        axes = [self.render_anisotropy, self.render_anisotropy_secondary, self.render_anisotropy_tertiary]
+        wp.launch(
+            reset_render_particles,
+            dim=self.model.particle_count,
+            inputs=[state.particle_q, anisotropy_scale],
+            outputs=[self.render_positions, *axes],
+            device=self.device,
+        )
+        # the scratch of the neighbourhood is rebuilt by the next step, so using it here changes nothing
+        self.build_neighborhood(state.particle_q)
+        self._slots_hold_positions = False
+        wp.launch(
+            compute_fluid_render_particles,
+            dim=self.fluid_count,
+            inputs=[self.params, self.search.slots, smoothing, anisotropy_scale, anisotropy_min, anisotropy_max],
+            outputs=[self.render_positions, *axes],
             device=self.device,
         )
 
