@@ -108,6 +108,8 @@ def run(args) -> dict:
         fluid_viscosity=args.viscosity,
         fluid_vorticity=0.0,
         fluid_relaxation=args.relaxation,
+        fluid_density_tolerance=args.density_tolerance,
+        fluid_max_iterations=args.density_iterations,
     )
     # contacts reach one diameter from the surface, where the walls' ghost density has vanished
     collision = newton.CollisionPipeline(model, soft_contact_max=model.particle_count, soft_contact_gap=0.5 * spacing)
@@ -182,6 +184,10 @@ def run(args) -> dict:
         "iterations": args.iterations,
         "cohesion": args.cohesion,
         "relaxation": args.relaxation,
+        "fluid_max_iterations": args.density_iterations,
+        "fluid_density_tolerance": args.density_tolerance,
+        "density_subiterations_per_substep": solver.fluid_diagnostics(states[0])["density_subiterations"]
+        / max(1, (args.warmup_frames + 2 + args.trials * args.frames) * args.substeps),
         "viscosity": args.viscosity,
         "speed_clamp_radii_per_substep": args.speed_clamp,
         "cuda_graph": graph is not None,
@@ -202,6 +208,8 @@ def main(argv=None):
     parser.add_argument("--iterations", type=int, default=2)
     parser.add_argument("--cohesion", type=float, default=1.0)
     parser.add_argument("--relaxation", type=float, default=1.0)
+    parser.add_argument("--density-iterations", type=int, default=1, help="fluid_max_iterations")
+    parser.add_argument("--density-tolerance", type=float, default=0.0, help="fluid_density_tolerance")
     parser.add_argument("--viscosity", type=float, default=0.05)
     parser.add_argument("--speed-clamp", type=float, default=0.5, help="max displacement per substep [radii]; 0: off")
     parser.add_argument("--warmup-frames", type=int, default=60)

@@ -61,6 +61,8 @@ def test_solver_keywords(test, device):
         "fluid_vorticity",
         "fluid_relaxation",
         "fluid_max_neighbors",
+        "fluid_density_tolerance",
+        "fluid_max_iterations",
         "max_diffuse_particles",
     ):
         test.assertIn(name, params)
@@ -92,6 +94,9 @@ BAD_ARGUMENTS = [
     ("fluid_max_neighbors", 2.5),
     ("fluid_max_neighbors", True),
     ("max_diffuse_particles", -5),
+    ("fluid_density_tolerance", -0.01),
+    ("fluid_max_iterations", 0),
+    ("fluid_max_iterations", 65),
 ]
 
 

@@ -411,6 +411,55 @@ def test_parameters_change_captured_graph(test, device):
     test.assertAlmostEqual(np.linalg.norm(qd - qd.mean(axis=0), axis=1).mean(), spread[0.8][0], places=5)
 
 
+def compressed_block(device):
+    return make_model(device, lambda b: add_block(b, (6, 6, 6), spacing=0.9 * D, jitter=0.05 * D))
+
+
+def test_density_subiterations_and_tolerance(test, device):
+    results = {}
+    for name, kwargs in (
+        ("single", {}),
+        ("fixed", {"fluid_max_iterations": 3}),
+        ("loose", {"fluid_max_iterations": 3, "fluid_density_tolerance": 1.0}),
+        ("tolerance", {"fluid_max_iterations": 8, "fluid_density_tolerance": 0.02}),
+    ):
+        model = compressed_block(device)
+        sim = Sim(model, substeps=1, iterations=1, **kwargs)
+        q0 = sim.q()
+        sim.step(1)  # one substep of one XPBD iteration: the density passes alone
+        stats = sim.solver.fluid_diagnostics(sim.state_0)
+        results[name] = (stats, np.abs(sim.q() - q0).max())
+    single, fixed, loose, tolerance = (results[k][0] for k in ("single", "fixed", "loose", "tolerance"))
+    # three passes, each from where the last left the particles: less compression than one pass
+    test.assertEqual(fixed["density_subiterations"], 3)
+    test.assertLess(fixed["mean_compression"], 0.7 * single["mean_compression"])
+    # a tolerance above the compression: no pass corrects anything, nothing moves
+    test.assertEqual(loose["density_subiterations"], 0)
+    test.assertEqual(results["loose"][1], 0.0)
+    # a reachable tolerance: stops early, within it
+    test.assertGreater(tolerance["density_subiterations"], 0)
+    test.assertLess(tolerance["density_subiterations"], 8)
+    test.assertLess(tolerance["mean_compression"], 0.02)
+
+
+def test_density_subiterations_in_captured_graph(test, device):
+    kwargs = {"fluid_max_iterations": 4, "fluid_density_tolerance": 0.01}
+    eager = Sim(compressed_block(device), **kwargs)
+    eager.step(1)
+    model = compressed_block(device)
+    sim = Sim(model, **kwargs)
+    with wp.ScopedCapture(device=device) as capture:
+        sim.step(1)
+    sim.state_0.particle_q.assign(model.particle_q)
+    sim.state_0.particle_qd.zero_()
+    wp.capture_launch(capture.graph)
+    np.testing.assert_allclose(sim.q(), eager.q(), atol=1.0e-5)
+    test.assertEqual(
+        int(sim.solver._fluid.subiterations_total.numpy()[0]),
+        int(eager.solver._fluid.subiterations_total.numpy()[0]),
+    )
+
+
 def test_no_fluid_adds_no_work(test, device):
     builder = newton.ModelBuilder()
     builder.add_particle(pos=wp.vec3(0.0, 0.0, 1.0), vel=wp.vec3(0.0), mass=1.0, radius=0.1)

@@ -113,8 +113,9 @@ def fluid_diagnostics(self, state) -> dict:
         ``mean_compression`` and ``max_compression`` (of max(rho/rho0 - 1, 0)), ``neighbors_min``,
         ``neighbors_mean``, ``neighbors_max``, ``neighbor_overflow`` (particles with more neighbours
         than are stored), ``candidates_mean`` (particles examined per neighbourhood search) and
-        ``nonfinite_recovered`` (total count of recovered non-finite particles). Empty for a model
-        without fluid.
+        ``nonfinite_recovered`` (total count of recovered non-finite particles) and
+        ``density_subiterations`` (total density passes that corrected, with ``fluid_max_iterations`` > 1).
+        Empty for a model without fluid.
     """
     if self._fluid is None:
         return {}
@@ -248,6 +249,9 @@ _FLUID_DOC = """
             fluid_vorticity: Vorticity confinement strength [m/s], >= 0. Defaults to 0 (off).
             fluid_relaxation: Scale of the density correction, in (0, 2]. Defaults to 1.
             fluid_max_neighbors: Neighbours used per particle, in [0, 4096]; 0 uses the whole neighbourhood.
+            fluid_density_tolerance: Mean compression (of max(rho/rho0 - 1, 0)) at which the density passes
+                of an iteration stop, >= 0. Defaults to 0 (no early stop). Only used with fluid_max_iterations > 1.
+            fluid_max_iterations: Density passes per XPBD iteration, in [1, 64]. Defaults to 1.
             max_diffuse_particles: Capacity of diffuse (foam/spray) particles, >= 0; 0 is off.
 """
 

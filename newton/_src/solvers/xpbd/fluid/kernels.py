@@ -49,6 +49,7 @@ class FluidParams:
     cohesion_out: float  # (1 - u0) / (h - rest distance) [1/m]
     viscosity: float  # [0, 1]
     vorticity: float  # confinement strength [m/s]
+    density_tolerance: float  # mean compression at which density sub-iterations stop
     wall_scale: float  # lattice density / rest density: converts the wall tables to constraint units
     wall_table_step: float  # wall distance between table samples [m]
 
@@ -214,6 +215,7 @@ def gather_fluid_state(
 def compute_fluid_density_lambda(
     params: wp.array[FluidParams],
     slots: FluidSlots,
+    active: wp.array[wp.int32],
     wall_c: wp.array[float],
     wall_grad: wp.array[wp.vec3],
     # outputs
@@ -223,11 +225,11 @@ def compute_fluid_density_lambda(
     """Poly6 density and the Jacobi multiplier of the unilateral constraint C = max(rho/rho0 - 1, 0).
 
     ``wall_c`` and ``wall_grad`` are the static walls' share of ``rho / rho0`` and its gradient (see
-    :func:`accumulate_fluid_wall_density`; zero away from walls).
+    :func:`accumulate_fluid_wall_density`; zero away from walls). Does nothing while ``active[0]`` is 0.
     """
     i = wp.tid()
     pi = slots.particle[i]
-    if pi < 0:
+    if pi < 0 or active[0] == 0:
         return
     p = params[0]
     xi4 = slots.xm[i]
@@ -267,24 +269,31 @@ def compute_fluid_density_lambda(
 def apply_fluid_density_correction(
     params: wp.array[FluidParams],
     slots: FluidSlots,
+    active: wp.array[wp.int32],
     lambdas: wp.array[float],
     particle_inv_mass: wp.array[float],
+    keep_walls: int,
     # outputs
     particle_deltas: wp.array[wp.vec3],
+    slot_dx: wp.array[wp.vec3],
     wall_c: wp.array[float],
     wall_grad: wp.array[wp.vec3],
 ):
     """Add the density correction and the cohesion bias of slot ``i`` to its particle's Jacobi delta.
 
-    Also clears the slot's wall share, which this iteration has used, for the next accumulation.
+    The correction is also written to ``slot_dx`` (for density sub-iterations). Unless
+    ``keep_walls`` is set, the slot's wall share, which this pass has used, is cleared for the next
+    accumulation. Does nothing while ``active[0]`` is 0.
     """
     i = wp.tid()
     pi = slots.particle[i]
-    if pi < 0:
+    if pi < 0 or active[0] == 0:
         return
     wall_g = wall_grad[i]
-    wall_grad[i] = wp.vec3(0.0)
-    wall_c[i] = 0.0
+    if keep_walls == 0:
+        wall_grad[i] = wp.vec3(0.0)
+        wall_c[i] = 0.0
+    slot_dx[i] = wp.vec3(0.0)
     if particle_inv_mass[pi] == 0.0:
         return
     p = params[0]
@@ -318,6 +327,7 @@ def apply_fluid_density_correction(
             coh *= coh_max / coh_len
         dx += coh
     particle_deltas[pi] = particle_deltas[pi] + dx
+    slot_dx[i] = dx
 
 
 @wp.kernel
@@ -402,6 +412,75 @@ def apply_vorticity_confinement(
     if eta_len > 1.0e-9:
         n = -eta / eta_len
         particle_qd[pi] = particle_qd[pi] + wp.cross(n, vorticity[i]) * (p.vorticity * dt)
+
+
+# bins of the compression sum of density sub-iterations: spreads the atomics over several addresses
+COMPRESSION_BINS = 64
+
+
+@wp.kernel
+def begin_fluid_subiterations(loop_active: wp.array[wp.int32], loop_count: wp.array[wp.int32]):
+    loop_active[0] = 1
+    loop_count[0] = 0
+
+
+@wp.kernel
+def sum_fluid_compression(
+    params: wp.array[FluidParams],
+    slots: FluidSlots,
+    active: wp.array[wp.int32],
+    density: wp.array[float],
+    # outputs
+    bins: wp.array[float],
+):
+    """Sum of max(rho/rho0 - 1, 0) (bins ``[0, B)``) and particle count (bins ``[B, 2B)``)."""
+    i = wp.tid()
+    if slots.particle[i] < 0 or active[0] == 0:
+        return
+    b = i % COMPRESSION_BINS
+    wp.atomic_add(bins, b, wp.max(density[i] * params[0].inv_rest_density - 1.0, 0.0))
+    wp.atomic_add(bins, COMPRESSION_BINS + b, 1.0)
+
+
+@wp.kernel
+def decide_fluid_subiteration(
+    params: wp.array[FluidParams],
+    bins: wp.array[float],
+    max_iterations: int,
+    check_tolerance: int,
+    # in/out
+    loop_active: wp.array[wp.int32],
+    loop_count: wp.array[wp.int32],
+    iterations_total: wp.array[wp.int32],
+):
+    """Stop after ``max_iterations`` corrections or, with ``check_tolerance``, once the mean compression is met."""
+    if loop_active[0] == 0:
+        return
+    if check_tolerance == 0:
+        if loop_count[0] >= max_iterations:
+            loop_active[0] = 0
+        return
+    total = float(0.0)
+    count = float(0.0)
+    for b in range(COMPRESSION_BINS):
+        total += bins[b]
+        count += bins[COMPRESSION_BINS + b]
+    if count == 0.0 or total <= params[0].density_tolerance * count:
+        loop_active[0] = 0
+        return
+    loop_count[0] = loop_count[0] + 1
+    iterations_total[0] = iterations_total[0] + 1
+
+
+@wp.kernel
+def advance_fluid_slots(slots: FluidSlots, active: wp.array[wp.int32], slot_dx: wp.array[wp.vec3]):
+    """Move the gathered positions by this sub-iteration's correction (the next one starts from there)."""
+    i = wp.tid()
+    if slots.particle[i] < 0 or active[0] == 0:
+        return
+    x = slots.xm[i]
+    d = slot_dx[i]
+    slots.xm[i] = wp.vec4(x[0] + d[0], x[1] + d[1], x[2] + d[2], x[3])
 
 
 @wp.kernel

@@ -21,16 +21,21 @@ import warp as wp
 
 from ....geometry import ParticleFlags
 from .kernels import (
+    COMPRESSION_BINS,
     FluidParams,
     FluidSlots,
     accumulate_fluid_wall_density,
+    advance_fluid_slots,
     apply_fluid_density_correction,
     apply_fluid_viscosity,
     apply_vorticity_confinement,
+    begin_fluid_subiterations,
     compute_fluid_density_lambda,
+    decide_fluid_subiteration,
     gather_fluid_positions,
     gather_fluid_state,
     recover_nonfinite_fluid,
+    sum_fluid_compression,
 )
 from .neighbors import FluidNeighborSearch
 from .render_particles import compute_fluid_render_particles, reset_render_particles
@@ -82,10 +87,19 @@ class FluidConfig:
     fluid_vorticity: float = 0.0
     fluid_relaxation: float = 1.0
     fluid_max_neighbors: int = 0
+    fluid_density_tolerance: float = 0.0
+    fluid_max_iterations: int = 1
     max_diffuse_particles: int = 0
 
     #: parameters that may change after construction (they live on the device)
-    MUTABLE = ("fluid_rest_density", "fluid_cohesion", "fluid_viscosity", "fluid_vorticity", "fluid_relaxation")
+    MUTABLE = (
+        "fluid_rest_density",
+        "fluid_cohesion",
+        "fluid_viscosity",
+        "fluid_vorticity",
+        "fluid_relaxation",
+        "fluid_density_tolerance",
+    )
 
     def __post_init__(self):
         if self.fluid_rest_distance is not None:
@@ -103,6 +117,11 @@ class FluidConfig:
         for name in self.MUTABLE:
             self.set(name, getattr(self, name))
         self.fluid_max_neighbors = _count("fluid_max_neighbors", self.fluid_max_neighbors, 4096)
+        if isinstance(self.fluid_max_iterations, bool) or self.fluid_max_iterations == 0:
+            raise ValueError(
+                f"fluid_max_iterations={self.fluid_max_iterations!r} is invalid: expected an integer in [1, 64]"
+            )
+        self.fluid_max_iterations = _count("fluid_max_iterations", self.fluid_max_iterations, 64)
         self.max_diffuse_particles = _count("max_diffuse_particles", self.max_diffuse_particles, 2**31 - 1)
 
     def set(self, name: str, value) -> None:
@@ -111,7 +130,7 @@ class FluidConfig:
             v = None if value is None else _real(name, value, 0.0, lo_open=True)
         elif name in ("fluid_cohesion", "fluid_viscosity"):
             v = _real(name, value, 0.0, 1.0)
-        elif name == "fluid_vorticity":
+        elif name in ("fluid_vorticity", "fluid_density_tolerance"):
             v = _real(name, value, 0.0)
         elif name == "fluid_relaxation":
             v = _real(name, value, 0.0, 2.0, lo_open=True)
@@ -213,6 +232,14 @@ class FluidSolver:
             self.lambdas = wp.zeros(n, dtype=float)
             self.sorted_v = wp.zeros(n, dtype=wp.vec3)
             self.vorticity = wp.zeros(n, dtype=wp.vec3)
+            self.slot_dx = wp.zeros(n, dtype=wp.vec3)
+            # state of the density sub-iteration loop: an "always on" flag for the single pass,
+            # and the loop's flag, correction count, compression bins and a total for diagnostics
+            self._always_active = wp.ones(1, dtype=wp.int32)
+            self._loop_active = wp.zeros(1, dtype=wp.int32)
+            self._loop_count = wp.zeros(1, dtype=wp.int32)
+            self._compression_bins = wp.zeros(2 * COMPRESSION_BINS, dtype=float)
+            self.subiterations_total = wp.zeros(1, dtype=wp.int32)
             # static walls' share of rho / rho0 and its gradient, per slot (zero without contacts)
             self.wall_c = wp.zeros(n, dtype=float)
             self.wall_grad = wp.zeros(n, dtype=wp.vec3)
@@ -264,6 +291,7 @@ class FluidSolver:
         p.cohesion_out = (1.0 - AKINCI_ZERO) / (h - d)
         p.viscosity = c.fluid_viscosity
         p.vorticity = c.fluid_vorticity
+        p.density_tolerance = c.fluid_density_tolerance
         p.wall_scale = self.lattice_density / self.rest_density
         p.wall_table_step = h / (WALL_TABLE_SIZE - 1)
         self.params.assign(wp.array([p], dtype=FluidParams, device="cpu"))
@@ -279,7 +307,14 @@ class FluidSolver:
         self._slots_hold_positions = True
 
     def solve_density(self, particle_q: wp.array, particle_deltas: wp.array) -> None:
-        """One Jacobi iteration of the density constraint: add its correction to ``particle_deltas``."""
+        """The density constraint of one XPBD iteration: add its correction to ``particle_deltas``.
+
+        With ``fluid_max_iterations`` 1 this is one Jacobi pass. Otherwise up to that many passes
+        run on the gathered positions, each starting where the last one left them, and stop early
+        once the mean compression is at most ``fluid_density_tolerance`` (if above 0). The count is
+        decided on the device: inside a graph capture the loop is a conditional while node, outside
+        one every pass is launched and the passes after the decision do nothing (no synchronisation).
+        """
         s, m, n = self.search, self.model, self.fluid_count
         if not self._slots_hold_positions:
             wp.launch(
@@ -291,12 +326,57 @@ class FluidSolver:
         # after this iteration's correction, the gathered positions are out of date
         self._slots_hold_positions = False
         self._accumulate_walls(particle_q)
-        self._evaluate_constraint()
+        if self.config.fluid_max_iterations == 1:
+            self._evaluate_constraint(self._always_active)
+            self._correct(particle_deltas, self._always_active, keep_walls=False)
+            return
+        wp.launch(
+            begin_fluid_subiterations,
+            dim=1,
+            outputs=[self._loop_active, self._loop_count],
+            device=self.device,
+        )
+        if self.device.is_capturing:
+            wp.capture_while(self._loop_active, self._density_subiteration, particle_deltas=particle_deltas)
+        else:
+            for _ in range(self.config.fluid_max_iterations):
+                self._density_subiteration(particle_deltas)
+        if self._has_walls:
+            self.wall_c.zero_()
+            self.wall_grad.zero_()
+
+    def _density_subiteration(self, particle_deltas: wp.array) -> None:
+        s, n = self.search, self.fluid_count
+        active = self._loop_active
+        decide = [
+            self.params,
+            self._compression_bins,
+            self.config.fluid_max_iterations,
+        ]
+        loop = [self._loop_active, self._loop_count, self.subiterations_total]
+        # stop once the allowed number of corrections is done ...
+        wp.launch(decide_fluid_subiteration, dim=1, inputs=[*decide, 0], outputs=loop, device=self.device)
+        self._evaluate_constraint(active)
+        self._compression_bins.zero_()
+        wp.launch(
+            sum_fluid_compression,
+            dim=n,
+            inputs=[self.params, s.slots, active, self.density],
+            outputs=[self._compression_bins],
+            device=self.device,
+        )
+        # ... or once the compression is within the tolerance
+        wp.launch(decide_fluid_subiteration, dim=1, inputs=[*decide, 1], outputs=loop, device=self.device)
+        self._correct(particle_deltas, active, keep_walls=True)
+        wp.launch(advance_fluid_slots, dim=n, inputs=[s.slots, active, self.slot_dx], device=self.device)
+
+    def _correct(self, particle_deltas: wp.array, active: wp.array, keep_walls: bool) -> None:
+        m = self.model
         wp.launch(
             apply_fluid_density_correction,
-            dim=n,
-            inputs=[self.params, s.slots, self.lambdas, m.particle_inv_mass],
-            outputs=[particle_deltas, self.wall_c, self.wall_grad],
+            dim=self.fluid_count,
+            inputs=[self.params, self.search.slots, active, self.lambdas, m.particle_inv_mass, int(keep_walls)],
+            outputs=[particle_deltas, self.slot_dx, self.wall_c, self.wall_grad],
             device=self.device,
         )
 
@@ -326,13 +406,13 @@ class FluidSolver:
             device=self.device,
         )
 
-    def _evaluate_constraint(self) -> None:
-        """Density and multipliers at the positions gathered in ``slots.xm``."""
+    def _evaluate_constraint(self, active: wp.array) -> None:
+        """Density and multipliers at the positions gathered in ``slots.xm`` (while ``active[0]`` is set)."""
         s = self.search
         wp.launch(
             compute_fluid_density_lambda,
             dim=self.fluid_count,
-            inputs=[self.params, s.slots, self.wall_c, self.wall_grad],
+            inputs=[self.params, s.slots, active, self.wall_c, self.wall_grad],
             outputs=[self.density, self.lambdas],
             device=self.device,
         )
@@ -432,7 +512,7 @@ class FluidSolver:
         s, n = self.search, self.fluid_count
         self.build_neighborhood(state.particle_q)
         # the statistics are of the fluid's own kernel sum (the wall shares are zero between steps)
-        self._evaluate_constraint()
+        self._evaluate_constraint(self._always_active)
         self._slots_hold_positions = False
         self._summary.assign(np.array(_SUMMARY_INIT, dtype=np.float32))
         wp.launch(
@@ -458,6 +538,7 @@ class FluidSolver:
             "neighbor_overflow": int(v[8]),
             "candidates_mean": mean(v[9]),
             "nonfinite_recovered": int(self.nonfinite_count.numpy()[0]),
+            "density_subiterations": int(self.subiterations_total.numpy()[0]),
         }
 
 
