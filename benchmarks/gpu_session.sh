@@ -20,6 +20,11 @@ for what in "$@"; do
       for v in "--iterations 4" "--substeps 4 --iterations 4" "--cohesion 0" "--speed-clamp 0"; do
         echo "== $v"; python3 benchmarks/dam_break.py $v --trials 3 --json "$out/dam_break_100k_${v//[ -]/_}.json" 2>&1 | tail -1
       done ;;
+    tolerance)
+      for v in "--density-iterations 2" "--density-iterations 4 --density-tolerance 0.005" \
+               "--iterations 1 --density-iterations 4 --density-tolerance 0.005" "--iterations 1 --density-iterations 2"; do
+        echo "== $v"; python3 benchmarks/dam_break.py $v --trials 3 --json "$out/dam_break_100k_${v//[ -.]/_}.json" 2>&1 | tail -1
+      done ;;
     tests)
       python3 -m pytest -q -k cuda newton/tests/test_solver_xpbd_fluid.py newton/tests/test_fluid_examples.py \
         newton/tests/test_fluid_extension.py 2>&1 | tail -25 ;;
