@@ -18,12 +18,12 @@ for what in "$@"; do
         > "$out/ncu.txt" 2>&1; grep -E 'fluid|Duration|Throughput|Achieved Occupancy|Registers Per|L1/TEX Hit|L2 Hit' "$out/ncu.txt" | head -80 ;;
     variants)
       for v in "--iterations 4" "--substeps 4 --iterations 4" "--cohesion 0" "--speed-clamp 0"; do
-        echo "== $v"; python3 benchmarks/dam_break.py $v --trials 3 --json "$out/dam_break_100k_${v//[ -]/_}.json" 2>&1 | tail -1
+        echo "== $v"; python3 benchmarks/dam_break.py $v --trials 3 --json "$out/dam_break_100k_${v//[ -]/_}.json" 2>&1 | grep -A1 "^device"
       done ;;
     tolerance)
       for v in "--density-iterations 2" "--density-iterations 4 --density-tolerance 0.005" \
                "--iterations 1 --density-iterations 4 --density-tolerance 0.005" "--iterations 1 --density-iterations 2"; do
-        echo "== $v"; python3 benchmarks/dam_break.py $v --trials 3 --json "$out/dam_break_100k_${v//[ -.]/_}.json" 2>&1 | tail -1
+        echo "== $v"; python3 benchmarks/dam_break.py $v --trials 3 --json "$out/dam_break_100k_${v//[ -.]/_}.json" 2>&1 | grep -A1 "^device"
       done ;;
     tests)
       python3 -m pytest -q -k cuda newton/tests/test_solver_xpbd_fluid.py newton/tests/test_fluid_examples.py \
