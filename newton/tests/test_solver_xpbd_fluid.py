@@ -135,7 +135,7 @@ def test_hydrostatic_column_stays_at_rest(test, device):
     settled = sim.q()
     sim.step(180)
     q = sim.q()
-    # at rest: slow surface creep only (measured: mean 0.06 spacing over 3 s)
+    # at rest: slow creep only (measured on CPU: mean 0.09, max 0.7 spacing over 3 s, the max at the surface)
     test.assertLess(np.abs(sim.qd()).max(), 0.05)
     test.assertLess(np.linalg.norm(q - settled, axis=1).mean(), 0.2 * D)
     # nearly incompressible, with the weight of the column carried by a compression that grows with depth
