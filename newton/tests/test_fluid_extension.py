@@ -96,6 +96,7 @@ BAD_ARGUMENTS = [
     ("max_diffuse_particles", -5),
     ("fluid_density_tolerance", -0.01),
     ("fluid_max_iterations", 0),
+    ("fluid_max_iterations", -2),
     ("fluid_max_iterations", 65),
 ]
 
@@ -109,6 +110,8 @@ def test_bad_arguments_raise(test, device):
         test.assertIn(name, str(ctx.exception))
         test.assertIn(repr(value), str(ctx.exception))
         test.assertRegex(str(ctx.exception), r"[\[(].*,.*[\])]")  # names the valid range
+        if name == "fluid_max_iterations":
+            test.assertIn("[1, 64]", str(ctx.exception))
     with test.assertRaisesRegex(ValueError, "fluid_rest_distance=None"):
         newton.solvers.SolverXPBD(model)
 

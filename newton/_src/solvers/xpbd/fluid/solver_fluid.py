@@ -69,9 +69,10 @@ def _real(name: str, value, lo: float, hi: float = math.inf, lo_open: bool = Fal
     return v
 
 
-def _count(name: str, value, hi: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not 0 <= int(value) <= hi:
-        raise ValueError(f"{name}={value!r} is invalid: expected an integer in [0, {hi}]")
+def _count(name: str, value, hi: int, lo: int = 0) -> int:
+    """Return ``value`` as int, or raise ``ValueError`` naming the argument, the value and the valid range."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not lo <= int(value) <= hi:
+        raise ValueError(f"{name}={value!r} is invalid: expected an integer in [{lo}, {hi}]")
     return int(value)
 
 
@@ -117,11 +118,7 @@ class FluidConfig:
         for name in self.MUTABLE:
             self.set(name, getattr(self, name))
         self.fluid_max_neighbors = _count("fluid_max_neighbors", self.fluid_max_neighbors, 4096)
-        if isinstance(self.fluid_max_iterations, bool) or self.fluid_max_iterations == 0:
-            raise ValueError(
-                f"fluid_max_iterations={self.fluid_max_iterations!r} is invalid: expected an integer in [1, 64]"
-            )
-        self.fluid_max_iterations = _count("fluid_max_iterations", self.fluid_max_iterations, 64)
+        self.fluid_max_iterations = _count("fluid_max_iterations", self.fluid_max_iterations, 64, lo=1)
         self.max_diffuse_particles = _count("max_diffuse_particles", self.max_diffuse_particles, 2**31 - 1)
 
     def set(self, name: str, value) -> None:
