@@ -27,6 +27,8 @@ from ....geometry import ParticleFlags
 
 # |r| below this fraction of h counts as coincident: the direction r/|r| is not usable there.
 COINCIDENT_FRACTION = 1.0e-5
+# bins of the compression sum of density sub-iterations: spreads the atomics over several addresses
+COMPRESSION_BINS = 64
 
 
 @wp.struct
@@ -218,14 +220,18 @@ def compute_fluid_density_lambda(
     active: wp.array[wp.int32],
     wall_c: wp.array[float],
     wall_grad: wp.array[wp.vec3],
+    track_compression: int,
     # outputs
     density: wp.array[float],
     lambdas: wp.array[float],
+    compression_bins: wp.array[float],
 ):
     """Poly6 density and the Jacobi multiplier of the unilateral constraint C = max(rho/rho0 - 1, 0).
 
     ``wall_c`` and ``wall_grad`` are the static walls' share of ``rho / rho0`` and its gradient (see
     :func:`accumulate_fluid_wall_density`; zero away from walls). Does nothing while ``active[0]`` is 0.
+    With ``track_compression``, also sums max(rho/rho0 - 1, 0) into ``compression_bins[0, B)`` and
+    counts the particles in ``[B, 2B)`` (``B = COMPRESSION_BINS``, spreading the atomics).
     """
     i = wp.tid()
     pi = slots.particle[i]
@@ -263,6 +269,10 @@ def compute_fluid_density_lambda(
     grad_i += wall_grad[i]
     density[i] = rho
     lambdas[i] = density_constraint_lambda(rho, grad_i, grad_sq, p)
+    if track_compression != 0:
+        b = i % COMPRESSION_BINS
+        wp.atomic_add(compression_bins, b, wp.max(rho * p.inv_rest_density - 1.0, 0.0))
+        wp.atomic_add(compression_bins, COMPRESSION_BINS + b, 1.0)
 
 
 @wp.kernel
@@ -414,32 +424,10 @@ def apply_vorticity_confinement(
         particle_qd[pi] = particle_qd[pi] + wp.cross(n, vorticity[i]) * (p.vorticity * dt)
 
 
-# bins of the compression sum of density sub-iterations: spreads the atomics over several addresses
-COMPRESSION_BINS = 64
-
-
 @wp.kernel
 def begin_fluid_subiterations(loop_active: wp.array[wp.int32], loop_count: wp.array[wp.int32]):
     loop_active[0] = 1
     loop_count[0] = 0
-
-
-@wp.kernel
-def sum_fluid_compression(
-    params: wp.array[FluidParams],
-    slots: FluidSlots,
-    active: wp.array[wp.int32],
-    density: wp.array[float],
-    # outputs
-    bins: wp.array[float],
-):
-    """Sum of max(rho/rho0 - 1, 0) (bins ``[0, B)``) and particle count (bins ``[B, 2B)``)."""
-    i = wp.tid()
-    if slots.particle[i] < 0 or active[0] == 0:
-        return
-    b = i % COMPRESSION_BINS
-    wp.atomic_add(bins, b, wp.max(density[i] * params[0].inv_rest_density - 1.0, 0.0))
-    wp.atomic_add(bins, COMPRESSION_BINS + b, 1.0)
 
 
 @wp.kernel

@@ -35,7 +35,6 @@ from .kernels import (
     gather_fluid_positions,
     gather_fluid_state,
     recover_nonfinite_fluid,
-    sum_fluid_compression,
 )
 from .neighbors import FluidNeighborSearch
 from .render_particles import compute_fluid_render_particles, reset_render_particles
@@ -353,15 +352,8 @@ class FluidSolver:
         loop = [self._loop_active, self._loop_count, self.subiterations_total]
         # stop once the allowed number of corrections is done ...
         wp.launch(decide_fluid_subiteration, dim=1, inputs=[*decide, 0], outputs=loop, device=self.device)
-        self._evaluate_constraint(active)
         self._compression_bins.zero_()
-        wp.launch(
-            sum_fluid_compression,
-            dim=n,
-            inputs=[self.params, s.slots, active, self.density],
-            outputs=[self._compression_bins],
-            device=self.device,
-        )
+        self._evaluate_constraint(active, track_compression=True)
         # ... or once the compression is within the tolerance
         wp.launch(decide_fluid_subiteration, dim=1, inputs=[*decide, 1], outputs=loop, device=self.device)
         self._correct(particle_deltas, active, keep_walls=True)
@@ -403,14 +395,14 @@ class FluidSolver:
             device=self.device,
         )
 
-    def _evaluate_constraint(self, active: wp.array) -> None:
+    def _evaluate_constraint(self, active: wp.array, track_compression: bool = False) -> None:
         """Density and multipliers at the positions gathered in ``slots.xm`` (while ``active[0]`` is set)."""
         s = self.search
         wp.launch(
             compute_fluid_density_lambda,
             dim=self.fluid_count,
-            inputs=[self.params, s.slots, active, self.wall_c, self.wall_grad],
-            outputs=[self.density, self.lambdas],
+            inputs=[self.params, s.slots, active, self.wall_c, self.wall_grad, int(track_compression)],
+            outputs=[self.density, self.lambdas, self._compression_bins],
             device=self.device,
         )
 
