@@ -303,8 +303,8 @@ def apply_fluid_density_correction(
     if keep_walls == 0:
         wall_grad[i] = wp.vec3(0.0)
         wall_c[i] = 0.0
-    slot_dx[i] = wp.vec3(0.0)
     if particle_inv_mass[pi] == 0.0:
+        slot_dx[i] = wp.vec3(0.0)
         return
     p = params[0]
     xi4 = slots.xm[i]

@@ -24,9 +24,17 @@ MIN_NEIGHBORS = 6
 
 
 @wp.func
-def render_weight(r2: float, h2: float):
-    q = wp.sqrt(r2 / h2)
-    return 1.0 - q * q * q
+def weighted_neighbor(slots: FluidSlots, i: int, k: int, xi: wp.vec3, h2: float):
+    """Position (xyz) and weight ``1 - (r/h)^3`` (w, 0 beyond h) of the ``k``-th neighbour of slot ``i``."""
+    xj4 = slots.xm[fluid_neighbor(slots, i, k)]
+    xj = wp.vec3(xj4[0], xj4[1], xj4[2])
+    r = xj - xi
+    r2 = wp.dot(r, r)
+    w = float(0.0)
+    if r2 < h2:
+        q = wp.sqrt(r2 / h2)
+        w = 1.0 - q * q * q
+    return wp.vec4(xj[0], xj[1], xj[2], w)
 
 
 @wp.kernel
@@ -72,14 +80,9 @@ def compute_fluid_render_particles(
     w_sum = float(1.0)
     mean = xi
     for k in range(count):
-        xj4 = slots.xm[fluid_neighbor(slots, i, k)]
-        xj = wp.vec3(xj4[0], xj4[1], xj4[2])
-        r = xj - xi
-        r2 = wp.dot(r, r)
-        if r2 < h2:
-            w = render_weight(r2, h2)
-            w_sum += w
-            mean += xj * w
+        n = weighted_neighbor(slots, i, k, xi, h2)
+        w_sum += n[3]
+        mean += wp.vec3(n[0], n[1], n[2]) * n[3]
     mean = mean / w_sum
     render_positions[pi] = xi * (1.0 - smoothing) + mean * smoothing
     if count < MIN_NEIGHBORS:
@@ -87,13 +90,9 @@ def compute_fluid_render_particles(
     d = xi - mean
     cov = wp.outer(d, d)
     for k in range(count):
-        xj4 = slots.xm[fluid_neighbor(slots, i, k)]
-        xj = wp.vec3(xj4[0], xj4[1], xj4[2])
-        r = xj - xi
-        r2 = wp.dot(r, r)
-        if r2 < h2:
-            d = xj - mean
-            cov += wp.outer(d, d) * render_weight(r2, h2)
+        n = weighted_neighbor(slots, i, k, xi, h2)
+        d = wp.vec3(n[0], n[1], n[2]) - mean
+        cov += wp.outer(d, d) * n[3]
     cov = cov / w_sum
     q, e = wp.eig3(cov)
     floor = 1.0e-6 * h2

@@ -513,19 +513,21 @@ class FluidSolver:
         )
         v = self._summary.numpy().astype(np.float64)
         active = int(v[0])
-        mean = (lambda x: x / active) if active else (lambda x: 0.0)
+        # with no active particle every sum is 0, and so is every reported value
+        per = 1.0 / active if active else 0.0
+        some = float(active > 0)
         return {
             "active_particles": active,
             "rest_density": self.rest_density,
-            "mean_abs_density_error": mean(v[1]),
-            "max_abs_density_error": float(v[2]) if active else 0.0,
-            "mean_compression": mean(v[3]),
-            "max_compression": float(v[4]) if active else 0.0,
-            "neighbors_min": int(v[5]) if active else 0,
-            "neighbors_mean": mean(v[6]),
-            "neighbors_max": int(v[7]) if active else 0,
+            "mean_abs_density_error": float(v[1] * per),
+            "max_abs_density_error": float(v[2] * some),
+            "mean_compression": float(v[3] * per),
+            "max_compression": float(v[4] * some),
+            "neighbors_min": int(v[5] * some),
+            "neighbors_mean": float(v[6] * per),
+            "neighbors_max": int(v[7] * some),
             "neighbor_overflow": int(v[8]),
-            "candidates_mean": mean(v[9]),
+            "candidates_mean": float(v[9] * per),
             "nonfinite_recovered": int(self.nonfinite_count.numpy()[0]),
             "density_subiterations": int(self.subiterations_total.numpy()[0]),
         }
