@@ -269,7 +269,7 @@ def test_log_fluid_draws_points_with_batch_color(test, device):
     test.assertEqual(name, "/water")
     test.assertIs(points, positions)
     np.testing.assert_allclose(r.numpy(), 0.1, rtol=1.0e-6)
-    np.testing.assert_allclose(colors, (0.1, 0.2, 0.8), rtol=1.0e-6)
+    np.testing.assert_allclose(colors.numpy(), [(0.1, 0.2, 0.8)] * 3, rtol=1.0e-6)
     test.assertFalse(hidden)
 
 

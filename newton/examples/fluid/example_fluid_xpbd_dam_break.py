@@ -80,9 +80,11 @@ def add_dam_break(builder: newton.ModelBuilder, particle_count: int, obstacles: 
             ((0.1, -0.45 * half_width, 0.15), (0.06, 0.25 * half_width, 0.15)),
             ((0.6, 0.4 * half_width, 0.2), (0.06, 0.25 * half_width, 0.2)),
         ]
-    for center, half in walls + boxes:
+    # the front (-y) wall collides but is not drawn, like the glass of a real tank
+    glass = newton.ModelBuilder.ShapeConfig(mu=0.0, is_visible=False)
+    for k, (center, half) in enumerate(walls + boxes):
         xform = wp.transform(wp.vec3(*center), wp.quat_identity())
-        builder.add_shape_box(-1, xform=xform, hx=half[0], hy=half[1], hz=half[2], cfg=cfg)
+        builder.add_shape_box(-1, xform=xform, hx=half[0], hy=half[1], hz=half[2], cfg=glass if k == 2 else cfg)
     return {"spacing": spacing, "dims": dims, "half_width": half_width, "obstacles": boxes}
 
 
@@ -118,6 +120,7 @@ class Example:
         )
         self.contacts = self.collision.contacts()
         self.viewer.set_model(self.model)
+        self.viewer.set_camera(wp.vec3(0.0, -2.6, 1.4), pitch=-22.0, yaw=90.0)
         self.capture()
 
     def capture(self):
@@ -149,14 +152,20 @@ class Example:
                 setattr(self.solver, name, max(value, 1.0e-3) if name == "fluid_relaxation" else value)
 
     def render(self):
+        # smoothed centres and ellipsoids for the surface; they do not feed back into the simulation
+        self.solver.update_render_particles(self.state_0)
         self.viewer.begin_frame(self.sim_time)
         self.viewer.log_state(self.state_0)
         self.viewer.log_fluid(
             "/fluid",
-            self.state_0.particle_q,
+            self.solver.render_positions,
             radii=self.model.particle_radius,
-            radius_scale=1.0,
-            color=(0.2, 0.45, 0.9),
+            radius_scale=1.3,
+            color=(0.2, 0.45, 0.9, 0.3),
+            absorption=(4.0, 1.2, 0.5),
+            anisotropy=self.solver.render_anisotropy,
+            anisotropy_secondary=self.solver.render_anisotropy_secondary,
+            anisotropy_tertiary=self.solver.render_anisotropy_tertiary,
         )
         self.viewer.end_frame()
 

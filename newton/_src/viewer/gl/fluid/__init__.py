@@ -1,17 +1,108 @@
 # SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
 # SPDX-License-Identifier: Apache-2.0
 
-"""``viewer.log_fluid``: fluid particles for every viewer.
+"""``viewer.log_fluid``: a fluid surface in ViewerGL, points in the batch colour everywhere else.
 
-This version draws every fluid batch as points in the batch colour on all viewers (the
-screen-space surface of ViewerGL is a later addition); the call signature is the final one, so
-scenes written against it keep working.
+:func:`activate` is the one place that extends the upstream viewers: it adds ``log_fluid`` to
+``ViewerBase`` (the point fallback every viewer inherits), overrides it on ``ViewerGL`` with the
+screen-space surface of :mod:`.renderer`, adds the ``ViewerGL.fluid_surface`` toggle and the
+``ViewerGL.fluid_renderer`` accessor, and wraps ``RendererGL.render`` so that the fluid is
+composited after the scene.
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import warp as wp
+
+SUPPORTED_NEWTON = "1.8.0"
+
+# upstream names the extension relies on: class attributes checked at activation, instance
+# attributes of RendererGL checked when the first fluid frame is drawn
+_CLASS_NAMES = {
+    "ViewerBase": ("log_points", "_qualify"),
+    "ViewerGL": ("log_points", "_qualify"),
+    "RendererGL": ("render", "_make_current", "gl"),
+}
+_RENDERER_NAMES = (
+    "_frame_fbo",
+    "_frame_texture",
+    "_frame_shader",
+    "_frame_vao",
+    "_frame_indices",
+    "_light_space_matrix",
+    "_sun_direction",
+    "_env_texture",
+    "_shadow_texture",
+    "_screen_width",
+    "_screen_height",
+)
+# set by RendererGL.render itself, so checked after it ran
+_FRAME_NAMES = ("_view_matrix", "_projection_matrix", "camera")
+
+
+def _upstream_error(missing) -> RuntimeError:
+    import newton  # noqa: PLC0415
+
+    return RuntimeError(
+        f"newton-fluid's viewer extension supports newton {SUPPORTED_NEWTON}, found newton {newton.__version__}: "
+        f"missing {', '.join(missing)}"
+    )
+
+
+def check_upstream(viewer_module) -> None:
+    """Raise ``RuntimeError`` naming the versions if an upstream viewer name we extend is missing."""
+    from newton._src.viewer.gl.opengl import RendererGL  # noqa: PLC0415
+
+    classes = {"ViewerBase": viewer_module.ViewerBase, "ViewerGL": viewer_module.ViewerGL, "RendererGL": RendererGL}
+    missing = [f"{c}.{n}" for c, names in _CLASS_NAMES.items() for n in names if not hasattr(classes[c], n)]
+    if missing:
+        raise _upstream_error(missing)
+
+
+def _check_material(
+    radius_scale, color, absorption, ior, reflectance, specular_intensity, specular_power, blur_radius_world
+):
+    def bad(name, value, valid):
+        return ValueError(f"{name}={value!r} is out of range: expected {valid}")
+
+    if not (isinstance(radius_scale, (int, float)) and math.isfinite(radius_scale) and radius_scale > 0.0):
+        raise bad("radius_scale", radius_scale, "a value in (0, inf)")
+    c = np.asarray(color, dtype=np.float64).ravel()
+    if c.size not in (3, 4) or not np.all(np.isfinite(c)) or np.any(c < 0.0) or np.any(c > 1.0):
+        raise bad("color", color, "3 or 4 values (RGB or RGBA) in [0, 1]")
+    if absorption is not None:
+        a = np.asarray(absorption, dtype=np.float64).ravel()
+        if a.size != 3 or not np.all(np.isfinite(a)) or np.any(a < 0.0):
+            raise bad("absorption", absorption, "None or 3 values in [0, inf) [1/m]")
+    if not (math.isfinite(ior) and 1.0 <= ior <= 3.0):
+        raise bad("ior", ior, "a value in [1, 3]")
+    if not (0.0 <= reflectance <= 1.0):
+        raise bad("reflectance", reflectance, "a value in [0, 1]")
+    if not (math.isfinite(specular_intensity) and specular_intensity >= 0.0):
+        raise bad("specular_intensity", specular_intensity, "a value in [0, inf)")
+    if not (math.isfinite(specular_power) and specular_power >= 1.0):
+        raise bad("specular_power", specular_power, "a value in [1, inf)")
+    if blur_radius_world is not None and not (math.isfinite(blur_radius_world) and blur_radius_world >= 0.0):
+        raise bad("blur_radius_world", blur_radius_world, "None or a value in [0, inf) [m]")
+    rgba = tuple(float(x) for x in c) + ((1.0,) if c.size == 3 else ())
+    return rgba
+
+
+def _check_axes(positions, anisotropy, anisotropy_secondary, anisotropy_tertiary):
+    axes = (anisotropy, anisotropy_secondary, anisotropy_tertiary)
+    if all(a is None for a in axes):
+        return None
+    names = ("anisotropy", "anisotropy_secondary", "anisotropy_tertiary")
+    for name, a in zip(names, axes, strict=True):
+        if a is None or a.dtype != wp.vec4 or len(a) < len(positions):
+            raise ValueError(
+                f"{name}={a!r} is invalid: expected the three anisotropy arrays together, each a wp.vec4 array "
+                f"with at least {len(positions)} entries (one per position)"
+            )
+    return axes
 
 
 def log_fluid(
@@ -22,38 +113,190 @@ def log_fluid(
     *,
     radius_scale: float = 1.8,
     color: tuple = (0.2, 0.45, 0.9, 1.0),
+    absorption: tuple | None = None,
+    ior: float = 1.333,
+    reflectance: float = 0.02,
+    specular_intensity: float = 0.6,
+    specular_power: float = 200.0,
+    blur_radius_world: float | None = None,
+    anisotropy: wp.array | None = None,
+    anisotropy_secondary: wp.array | None = None,
+    anisotropy_tertiary: wp.array | None = None,
     hidden: bool = False,
-    **surface,
 ) -> None:
     """Log a batch of fluid particles.
 
+    ViewerGL draws each batch as a screen-space liquid surface (ray-cast ellipsoids, smoothed
+    depth, refraction, Beer-Lambert absorption, Fresnel reflection), with the batches of a frame
+    occluding each other and the scene correctly; with ``viewer.fluid_surface = False``, and in
+    every other viewer, the particles are drawn as points in the batch colour.
+
     Args:
-        name: Unique path of the batch; logging the same name again replaces it.
+        name: Unique path of the batch; logging the same name again replaces it (the particle
+            count may change between frames).
         positions: Particle (or render) positions [m], ``wp.array`` of ``wp.vec3``; ``None`` removes the batch.
-        radii: Per-particle radii [m] (``wp.array`` of float) or one radius for all; ``None`` uses the
-            viewer's default point size.
-        radius_scale: Multiplier of ``radii`` for drawing [dimensionless], > 0.
-        color: Batch colour, RGB or RGBA in [0, 1].
+        radii: Per-particle radii [m] (``wp.array`` of float) or one radius for all; ``None``: 0.1 m.
+            A particle of radius r stands for a cube of fluid of edge 2r (Newton's particle
+            spacing), which calibrates the thickness.
+        radius_scale: Multiplier of ``radii`` for the drawn ellipsoids [dimensionless], in (0, inf).
+        color: RGB or RGBA in [0, 1]: the colour the fluid scatters toward the eye, weighted by alpha
+            (0: clear, 1: milky); also the transmitted tint when ``absorption`` is None.
+        absorption: Absorption coefficients sigma_a [1/m] per channel for Beer-Lambert transmission
+            ``T = exp(-sigma_a * thickness)``; ``None``: ``-ln(color.rgb) / 0.1``, i.e. 0.1 m of fluid
+            transmits ``color.rgb``.
+        ior: Index of refraction in [1, 3] (bends the view of the scene behind).
+        reflectance: Fresnel reflectance at normal incidence F0 in [0, 1] (Schlick).
+        specular_intensity: Strength of the sun's highlight, in [0, inf).
+        specular_power: Blinn-Phong exponent of the highlight, in [1, inf).
+        blur_radius_world: Width of the surface smoothing filter [m], in [0, inf); ``None``: the drawn
+            particle radius.
+        anisotropy: Longest ellipsoid axis per particle, ``wp.vec4`` (unit direction xyz, radius
+            scale w), e.g. ``solver.render_anisotropy``; give all three axes or none (spheres).
+        anisotropy_secondary: Middle axis, same layout.
+        anisotropy_tertiary: Shortest axis, same layout.
         hidden: Whether the batch is hidden.
-        **surface: Surface-shading options of the screen-space renderer (``absorption``, ``ior``,
-            ``reflectance``, ``specular_intensity``, ``specular_power``, ``blur_radius_world``,
-            ``anisotropy``, ...); the point fallback ignores them.
+
+    Raises:
+        ValueError: An argument is out of its range (the message names it, its value and the range).
     """
     if positions is None:
-        # an empty batch hides what was logged under this name before
         self.log_points(name, None, hidden=True)
         return
-    if not (radius_scale > 0.0):
-        raise ValueError(f"radius_scale={radius_scale!r} is out of range: expected a value in (0, inf)")
+    _check_material(
+        radius_scale, color, absorption, ior, reflectance, specular_intensity, specular_power, blur_radius_world
+    )
+    _check_axes(positions, anisotropy, anisotropy_secondary, anisotropy_tertiary)
+    _log_fluid_points(self, name, positions, radii, radius_scale, color, hidden)
+
+
+def _log_fluid_points(viewer, name, positions, radii, radius_scale, color, hidden):
+    if radii is None:
+        radii = 0.1
     if isinstance(radii, (int, float)):
         radii = float(radii) * radius_scale
-    elif radii is not None and radius_scale != 1.0:
-        radii = wp.array(radii.numpy() * radius_scale, dtype=wp.float32, device=radii.device)
-    rgb = tuple(float(c) for c in np.asarray(color, dtype=np.float32)[:3])
-    self.log_points(name, positions, radii=radii, colors=rgb, hidden=hidden)
+    elif radius_scale != 1.0:
+        radii = wp.array(radii.numpy()[: len(positions)] * radius_scale, dtype=wp.float32, device=radii.device)
+    rgb = wp.vec3(*(float(c) for c in np.asarray(color, dtype=np.float32)[:3]))
+    # one colour per point: not every viewer's log_points takes a single RGB triple
+    colors = wp.full(len(positions), rgb, dtype=wp.vec3, device=positions.device)
+    viewer.log_points(name, positions, radii=radii, colors=colors, hidden=hidden)
+
+
+def log_fluid_gl(
+    self,
+    name: str,
+    positions: wp.array | None,
+    radii: wp.array | float | None = None,
+    *,
+    radius_scale: float = 1.8,
+    color: tuple = (0.2, 0.45, 0.9, 1.0),
+    absorption: tuple | None = None,
+    ior: float = 1.333,
+    reflectance: float = 0.02,
+    specular_intensity: float = 0.6,
+    specular_power: float = 200.0,
+    blur_radius_world: float | None = None,
+    anisotropy: wp.array | None = None,
+    anisotropy_secondary: wp.array | None = None,
+    anisotropy_tertiary: wp.array | None = None,
+    hidden: bool = False,
+) -> None:
+    from .renderer import FluidMaterial  # noqa: PLC0415
+
+    qualified = self._qualify(name)
+    fluid = fluid_renderer(self)
+    if positions is None:
+        fluid.remove_batch(qualified)
+        self.log_points(name, None, hidden=True)
+        return
+    rgba = _check_material(
+        radius_scale, color, absorption, ior, reflectance, specular_intensity, specular_power, blur_radius_world
+    )
+    axes = _check_axes(positions, anisotropy, anisotropy_secondary, anisotropy_tertiary)
+    if not self.fluid_surface:
+        fluid.hide_batch(qualified)
+        _log_fluid_points(self, name, positions, radii, radius_scale, rgba, hidden)
+        return
+    if qualified in self.objects:
+        self.objects[qualified].hidden = True
+    if radii is None:
+        radii = 0.1
+    if isinstance(radii, (int, float)):
+        radii = float(radii)
+    elif radii.dtype != wp.float32 or len(radii) < len(positions):
+        raise ValueError(
+            f"radii={radii!r} is invalid: expected a float, or a float32 array with one radius per position"
+        )
+    material = FluidMaterial(
+        color=rgba,
+        absorption=None if absorption is None else tuple(float(a) for a in absorption),
+        ior=float(ior),
+        reflectance=float(reflectance),
+        specular_intensity=float(specular_intensity),
+        specular_power=float(specular_power),
+        blur_radius_world=None if blur_radius_world is None else float(blur_radius_world),
+        radius_scale=float(radius_scale),
+    )
+    fluid.set_batch(qualified, positions, radii, material, axes, hidden)
+
+
+def fluid_renderer(self):
+    """The :class:`~newton._src.viewer.gl.fluid.renderer.FluidRendererGL` of this ViewerGL (created on first use)."""
+    renderer = self.renderer
+    fluid = getattr(renderer, "_newton_fluid", None)
+    if fluid is None:
+        from .renderer import FluidRendererGL  # noqa: PLC0415
+
+        missing = [n for n in _RENDERER_NAMES if not hasattr(renderer, n)]
+        if missing:
+            raise _upstream_error([f"RendererGL.{n}" for n in missing])
+        fluid = FluidRendererGL(renderer)
+        renderer._newton_fluid = fluid
+    return fluid
+
+
+def _fluid_surface_get(self) -> bool:
+    return getattr(self, "_newton_fluid_surface", True)
+
+
+def _fluid_surface_set(self, value: bool) -> None:
+    self._newton_fluid_surface = bool(value)
 
 
 def activate(viewer_module) -> None:
-    """Add ``log_fluid`` to the viewer base class of ``viewer_module`` (``newton._src.viewer``); idempotent."""
+    """Extend the viewers of ``viewer_module`` (``newton._src.viewer``); idempotent."""
+    check_upstream(viewer_module)
     if not hasattr(viewer_module.ViewerBase, "log_fluid"):
         viewer_module.ViewerBase.log_fluid = log_fluid
+    gl_viewer = viewer_module.ViewerGL
+    if getattr(gl_viewer.log_fluid, "__name__", "") != "log_fluid_gl":
+        log_fluid_gl.__doc__ = log_fluid.__doc__
+        gl_viewer.log_fluid = log_fluid_gl
+        gl_viewer.fluid_surface = property(
+            _fluid_surface_get,
+            _fluid_surface_set,
+            doc="Draw ``log_fluid`` batches as a liquid surface (True, default) or as raw particles (False).",
+        )
+        gl_viewer.fluid_renderer = property(fluid_renderer)
+
+        from newton._src.viewer.gl.opengl import RendererGL  # noqa: PLC0415
+
+        upstream_render = RendererGL.render
+
+        def render(self, *args, **kwargs):
+            upstream_render(self, *args, **kwargs)
+            fluid = getattr(self, "_newton_fluid", None)
+            if fluid is not None and fluid.visible_batches():
+                missing = [n for n in _FRAME_NAMES if not hasattr(self, n)]
+                if missing:
+                    raise _upstream_error([f"RendererGL.{n}" for n in missing])
+                fluid.render()
+                if self.draw_fps:
+                    # leave the state upstream's render leaves for the UI overlay
+                    self.gl.glClear(self.gl.GL_DEPTH_BUFFER_BIT)
+                    self.gl.glBlendFunc(self.gl.GL_SRC_ALPHA, self.gl.GL_ONE_MINUS_SRC_ALPHA)
+                    self.gl.glEnable(self.gl.GL_BLEND)
+
+        render.__doc__ = upstream_render.__doc__
+        render.__wrapped__ = upstream_render
+        RendererGL.render = render

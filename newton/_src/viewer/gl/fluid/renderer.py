@@ -1,0 +1,635 @@
+# SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
+# SPDX-License-Identifier: Apache-2.0
+
+"""Screen-space fluid surface for ViewerGL.
+
+After van der Laan, Green & Sainz, "Screen space fluid rendering with curvature flow" (I3D 2009),
+with ellipsoid splats after Yu & Turk (2013). Runs after the scene has been drawn and resolved
+into RendererGL's frame buffer, at its size:
+
+1. thickness: additive optical depth of enlarged ellipsoid splats, depth-tested against the scene;
+2. depth: ray-cast ellipsoids into linear eye depth (RG32F, batch index in G) and the depth buffer;
+3. smooth: separable depth-aware (bilateral) filter, width ``blur_radius_world`` [m];
+4. shade: normals from depth, refraction of the scene behind, Beer-Lambert transmission, Schlick
+   Fresnel reflection of the environment, specular highlight and the scene's shadow, written into
+   the frame buffer with the fluid's depth;
+5. diffuse hooks: callables drawing foam or spray against the fluid depth.
+
+The frame buffer is then presented again, so ``viewer.get_frame()`` sees the composited image.
+"""
+
+from __future__ import annotations
+
+import ctypes
+from dataclasses import dataclass, field
+
+import numpy as np
+import warp as wp
+
+from . import shaders
+
+# pixel budget of one filter tap line; wider blurs skip texels
+MAX_FILTER_RADIUS_PX = 32
+# splats for the thickness pass are this much larger than the drawn ellipsoids, which fills the
+# gaps between particles so that a body of fluid reads as one slab
+THICKNESS_SPLAT_SCALE = 1.5
+# when no absorption is given: the colour is what this thickness [m] of fluid transmits
+COLOR_REFERENCE_THICKNESS = 0.1
+
+
+@wp.kernel
+def pack_fluid_instances(
+    positions: wp.array[wp.vec3],
+    radii: wp.array[float],
+    radius: float,
+    axis_1: wp.array[wp.vec4],
+    axis_2: wp.array[wp.vec4],
+    axis_3: wp.array[wp.vec4],
+    has_axes: int,
+    # outputs
+    instances: wp.array2d[wp.vec4],
+):
+    """Four vec4 per particle for the GL instance buffer: centre and radius, then the three axes."""
+    i = wp.tid()
+    r = radius
+    if radii.shape[0] > 0:
+        r = radii[i]
+    p = positions[i]
+    instances[i, 0] = wp.vec4(p[0], p[1], p[2], r)
+    if has_axes != 0:
+        instances[i, 1] = axis_1[i]
+        instances[i, 2] = axis_2[i]
+        instances[i, 3] = axis_3[i]
+    else:
+        instances[i, 1] = wp.vec4(1.0, 0.0, 0.0, 1.0)
+        instances[i, 2] = wp.vec4(0.0, 1.0, 0.0, 1.0)
+        instances[i, 3] = wp.vec4(0.0, 0.0, 1.0, 1.0)
+
+
+@dataclass
+class FluidMaterial:
+    """Look of one fluid batch; see :func:`log_fluid` for the meaning and units of each field."""
+
+    color: tuple = (0.2, 0.45, 0.9, 1.0)
+    absorption: tuple | None = None
+    ior: float = 1.333
+    reflectance: float = 0.02
+    specular_intensity: float = 0.6
+    specular_power: float = 200.0
+    blur_radius_world: float | None = None
+    radius_scale: float = 1.8
+
+    def absorption_coefficients(self) -> tuple:
+        """sigma_a per channel [1/m]."""
+        if self.absorption is not None:
+            return tuple(float(a) for a in self.absorption)
+        rgb = np.clip(np.asarray(self.color[:3], dtype=np.float64), 1.0e-3, 1.0)
+        return tuple(float(a) for a in -np.log(rgb) / COLOR_REFERENCE_THICKNESS)
+
+
+@dataclass
+class FluidBatchGL:
+    """GL instance buffer and material of one named fluid batch."""
+
+    material: FluidMaterial
+    count: int = 0
+    capacity: int = 0
+    vbo: int = 0
+    vao: int = 0
+    mean_radius: float = 0.0
+    hidden: bool = False
+    packed: wp.array | None = None
+    registered: object = None
+    extra: dict = field(default_factory=dict)
+
+
+class FluidRendererGL:
+    """Owns the fluid batches of one ViewerGL and draws them after the scene."""
+
+    def __init__(self, renderer):
+        self.renderer = renderer
+        self.batches: dict[str, FluidBatchGL] = {}
+        self.diffuse_hooks: list = []
+        self.size = (0, 0)
+        self._programs = None
+        self._targets = None
+        self._quad_vbo = None
+        self._empty_vao = None
+        self._cuda_interop = True
+        self.last_timings_ms: dict[str, float] = {}
+        self.measure_timings = False
+
+    # ------------------------------------------------------------------ batches
+    def set_batch(self, name, positions, radii, material, anisotropy, hidden):
+        gl = self.renderer.gl
+        self.renderer._make_current()
+        batch = self.batches.get(name)
+        if batch is None:
+            if len(self.batches) >= shaders.MAX_BATCHES:
+                raise ValueError(
+                    f"name={name!r} would be fluid batch {len(self.batches) + 1}: expected at most "
+                    f"{shaders.MAX_BATCHES} batches in one viewer"
+                )
+            batch = FluidBatchGL(material=material)
+            self.batches[name] = batch
+        batch.material = material
+        batch.hidden = hidden
+        n = len(positions)
+        batch.count = n
+        if n == 0:
+            return
+        self._ensure_common(gl)
+        if n > batch.capacity:
+            self._allocate_batch(gl, batch, max(n, 2 * batch.capacity, 256))
+        device = positions.device
+        if batch.packed is None or batch.packed.device != device:
+            batch.packed = wp.empty((batch.capacity, 4), dtype=wp.vec4, device=device)
+        scalar = isinstance(radii, float)
+        if scalar:
+            batch.mean_radius = radii
+        elif batch.extra.get("radii_key") != (id(radii), n):
+            # the default blur width follows the radius: read it once per radii array, not per frame
+            batch.extra["radii_key"] = (id(radii), n)
+            batch.mean_radius = float(np.mean(radii.numpy()[:n]))
+        none_f = wp.empty(0, dtype=float, device=device)
+        none_v = wp.empty(0, dtype=wp.vec4, device=device)
+        axes = anisotropy if anisotropy is not None else (none_v, none_v, none_v)
+        wp.launch(
+            pack_fluid_instances,
+            dim=n,
+            inputs=[
+                positions,
+                none_f if scalar else radii,
+                radii if scalar else 0.0,
+                *axes,
+                int(anisotropy is not None),
+            ],
+            outputs=[batch.packed],
+            device=device,
+        )
+        self._upload(gl, batch, n)
+
+    def hide_batch(self, name):
+        if name in self.batches:
+            self.batches[name].hidden = True
+
+    def remove_batch(self, name):
+        batch = self.batches.pop(name, None)
+        if batch is not None and batch.vbo:
+            gl = self.renderer.gl
+            self.renderer._make_current()
+            batch.registered = None
+            gl.glDeleteBuffers(1, ctypes.byref(gl.GLuint(batch.vbo)))
+            gl.glDeleteVertexArrays(1, ctypes.byref(gl.GLuint(batch.vao)))
+
+    def _allocate_batch(self, gl, batch, capacity):
+        if not batch.vbo:
+            ids = (gl.GLuint * 1)()
+            gl.glGenBuffers(1, ids)
+            batch.vbo = int(ids[0])
+            gl.glGenVertexArrays(1, ids)
+            batch.vao = int(ids[0])
+            gl.glBindVertexArray(batch.vao)
+            gl.glBindBuffer(gl.GL_ARRAY_BUFFER, self._quad_vbo)
+            gl.glEnableVertexAttribArray(0)
+            gl.glVertexAttribPointer(0, 2, gl.GL_FLOAT, gl.GL_FALSE, 8, ctypes.c_void_p(0))
+            gl.glBindBuffer(gl.GL_ARRAY_BUFFER, batch.vbo)
+            for k in range(4):
+                gl.glEnableVertexAttribArray(1 + k)
+                gl.glVertexAttribPointer(1 + k, 4, gl.GL_FLOAT, gl.GL_FALSE, 64, ctypes.c_void_p(16 * k))
+                gl.glVertexAttribDivisor(1 + k, 1)
+            gl.glBindVertexArray(0)
+        gl.glBindBuffer(gl.GL_ARRAY_BUFFER, batch.vbo)
+        gl.glBufferData(gl.GL_ARRAY_BUFFER, capacity * 64, None, gl.GL_DYNAMIC_DRAW)
+        gl.glBindBuffer(gl.GL_ARRAY_BUFFER, 0)
+        batch.capacity = capacity
+        batch.registered = None
+        batch.packed = None
+
+    def _upload(self, gl, batch, n):
+        packed = batch.packed
+        if packed.device.is_cuda and self._cuda_interop:
+            try:
+                if batch.registered is None:
+                    batch.registered = wp.RegisteredGLBuffer(
+                        batch.vbo, packed.device, flags=wp.RegisteredGLBuffer.WRITE_DISCARD
+                    )
+                mapped = batch.registered.map(dtype=wp.vec4, shape=(batch.capacity, 4))
+                wp.copy(mapped, packed, count=4 * n)
+                batch.registered.unmap()
+                return
+            except Exception:
+                # no CUDA-GL interop on this context (e.g. a Mesa context beside a CUDA device)
+                self._cuda_interop = False
+                batch.registered = None
+        host = np.ascontiguousarray(packed.numpy()[:n], dtype=np.float32)
+        gl.glBindBuffer(gl.GL_ARRAY_BUFFER, batch.vbo)
+        gl.glBufferSubData(gl.GL_ARRAY_BUFFER, 0, host.nbytes, host.ctypes.data)
+        gl.glBindBuffer(gl.GL_ARRAY_BUFFER, 0)
+
+    # ------------------------------------------------------------------ resources
+    def _ensure_common(self, gl):
+        if self._programs is not None:
+            return
+        from pyglet.graphics.shader import Shader, ShaderProgram  # noqa: PLC0415
+
+        def program(vs, fs):
+            return ShaderProgram(Shader(vs, "vertex"), Shader(fs, "fragment"))
+
+        self._programs = {
+            "thickness": program(shaders.ELLIPSOID_VERTEX, shaders.THICKNESS_FRAGMENT),
+            "depth": program(shaders.ELLIPSOID_VERTEX, shaders.DEPTH_FRAGMENT),
+            "filter": program(shaders.FULLSCREEN_VERTEX, shaders.FILTER_FRAGMENT),
+            "optical_filter": program(shaders.FULLSCREEN_VERTEX, shaders.OPTICAL_FILTER_FRAGMENT),
+            "shade": program(shaders.FULLSCREEN_VERTEX, shaders.SHADE_FRAGMENT),
+        }
+        quad = np.array([-1.0, -1.0, 1.0, -1.0, -1.0, 1.0, 1.0, 1.0], dtype=np.float32)
+        ids = (gl.GLuint * 1)()
+        gl.glGenBuffers(1, ids)
+        self._quad_vbo = int(ids[0])
+        gl.glBindBuffer(gl.GL_ARRAY_BUFFER, self._quad_vbo)
+        gl.glBufferData(gl.GL_ARRAY_BUFFER, quad.nbytes, quad.ctypes.data, gl.GL_STATIC_DRAW)
+        gl.glBindBuffer(gl.GL_ARRAY_BUFFER, 0)
+        gl.glGenVertexArrays(1, ids)
+        self._empty_vao = int(ids[0])
+
+    def _ensure_targets(self, gl, width, height):
+        if self._targets is not None and self.size == (width, height):
+            return
+        self._release_targets(gl)
+
+        def texture(internal, fmt, kind):
+            ids = (gl.GLuint * 1)()
+            gl.glGenTextures(1, ids)
+            gl.glBindTexture(gl.GL_TEXTURE_2D, ids[0])
+            gl.glTexImage2D(gl.GL_TEXTURE_2D, 0, internal, width, height, 0, fmt, kind, None)
+            gl.glTexParameteri(gl.GL_TEXTURE_2D, gl.GL_TEXTURE_MIN_FILTER, gl.GL_NEAREST)
+            gl.glTexParameteri(gl.GL_TEXTURE_2D, gl.GL_TEXTURE_MAG_FILTER, gl.GL_NEAREST)
+            gl.glTexParameteri(gl.GL_TEXTURE_2D, gl.GL_TEXTURE_WRAP_S, gl.GL_CLAMP_TO_EDGE)
+            gl.glTexParameteri(gl.GL_TEXTURE_2D, gl.GL_TEXTURE_WRAP_T, gl.GL_CLAMP_TO_EDGE)
+            return int(ids[0])
+
+        def framebuffer(color, depth=None):
+            ids = (gl.GLuint * 1)()
+            gl.glGenFramebuffers(1, ids)
+            gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, ids[0])
+            gl.glFramebufferTexture2D(gl.GL_FRAMEBUFFER, gl.GL_COLOR_ATTACHMENT0, gl.GL_TEXTURE_2D, color, 0)
+            if depth is not None:
+                gl.glFramebufferTexture2D(gl.GL_FRAMEBUFFER, gl.GL_DEPTH_ATTACHMENT, gl.GL_TEXTURE_2D, depth, 0)
+            status = gl.glCheckFramebufferStatus(gl.GL_FRAMEBUFFER)
+            gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, 0)
+            if status != gl.GL_FRAMEBUFFER_COMPLETE:
+                raise RuntimeError(f"fluid render target incomplete (status 0x{status:x})")
+            return int(ids[0])
+
+        t = {
+            "depth": texture(gl.GL_RG32F, gl.GL_RG, gl.GL_FLOAT),
+            "depth_blur": texture(gl.GL_RG32F, gl.GL_RG, gl.GL_FLOAT),
+            "optical": texture(gl.GL_RGBA16F, gl.GL_RGBA, gl.GL_FLOAT),
+            "optical_blur": texture(gl.GL_RGBA16F, gl.GL_RGBA, gl.GL_FLOAT),
+            "scene_depth": texture(gl.GL_DEPTH_COMPONENT32, gl.GL_DEPTH_COMPONENT, gl.GL_FLOAT),
+            "scene_color": texture(gl.GL_RGB8, gl.GL_RGB, gl.GL_UNSIGNED_BYTE),
+            "zbuffer": texture(gl.GL_DEPTH_COMPONENT32, gl.GL_DEPTH_COMPONENT, gl.GL_FLOAT),
+        }
+        gl.glBindTexture(gl.GL_TEXTURE_2D, t["scene_color"])
+        gl.glTexParameteri(gl.GL_TEXTURE_2D, gl.GL_TEXTURE_MIN_FILTER, gl.GL_LINEAR)
+        gl.glTexParameteri(gl.GL_TEXTURE_2D, gl.GL_TEXTURE_MAG_FILTER, gl.GL_LINEAR)
+        gl.glBindTexture(gl.GL_TEXTURE_2D, 0)
+        t["fbo_depth"] = framebuffer(t["depth"], t["zbuffer"])
+        t["fbo_optical"] = framebuffer(t["optical"], t["zbuffer"])
+        t["fbo_blur"] = framebuffer(t["depth_blur"])
+        t["fbo_depth_only"] = framebuffer(t["depth"])
+        t["fbo_scene"] = framebuffer(t["scene_color"], t["scene_depth"])
+        t["fbo_optical_blur"] = framebuffer(t["optical_blur"])
+        t["fbo_optical_only"] = framebuffer(t["optical"])
+        self._targets = t
+        self.size = (width, height)
+
+    def _release_targets(self, gl):
+        if self._targets is None:
+            return
+        for key, obj in self._targets.items():
+            ref = ctypes.byref(gl.GLuint(obj))
+            if key.startswith("fbo"):
+                gl.glDeleteFramebuffers(1, ref)
+            else:
+                gl.glDeleteTextures(1, ref)
+        self._targets = None
+
+    def release(self):
+        """Free every GL object of the fluid renderer (the viewer's context must be current)."""
+        gl = self.renderer.gl
+        for name in list(self.batches):
+            self.remove_batch(name)
+        self._release_targets(gl)
+        if self._programs is not None:
+            for p in self._programs.values():
+                p.delete()
+            self._programs = None
+
+    def read_texture(self, which: str) -> np.ndarray:
+        """Read one internal target back (testing aid): ``"depth"`` (smoothed linear depth [m] and batch
+        index, 0 depth where there is no fluid) or ``"optical"`` (absorbance per channel and thickness [m]).
+
+        Rows are bottom-up, as OpenGL stores them.
+        """
+        gl = self.renderer.gl
+        self.renderer._make_current()
+        if self._targets is None:
+            raise RuntimeError("no fluid has been rendered yet")
+        w, h = self.size
+        channels = {"depth": (gl.GL_RG, 2), "optical": (gl.GL_RGBA, 4)}[which]
+        out = np.zeros((h, w, channels[1]), dtype=np.float32)
+        gl.glBindTexture(gl.GL_TEXTURE_2D, self._targets[which])
+        gl.glGetTexImage(gl.GL_TEXTURE_2D, 0, channels[0], gl.GL_FLOAT, out.ctypes.data)
+        gl.glBindTexture(gl.GL_TEXTURE_2D, 0)
+        return out
+
+    # ------------------------------------------------------------------ passes
+    def visible_batches(self):
+        return [(i, b) for i, b in enumerate(self.batches.values()) if not b.hidden and b.count > 0]
+
+    def render(self):
+        """Composite the fluid into the renderer's frame buffer and present it again."""
+        batches = self.visible_batches()
+        if not batches:
+            return
+        r = self.renderer
+        gl = r.gl
+        width, height = int(r._screen_width), int(r._screen_height)
+        if width <= 0 or height <= 0:
+            return
+        self._ensure_common(gl)
+        self._ensure_targets(gl, width, height)
+        t = self._targets
+        view = np.asarray(r._view_matrix, dtype=np.float32).reshape(16)
+        proj = np.asarray(r._projection_matrix, dtype=np.float32).reshape(16)
+        focal_px = float(proj[5]) * 0.5 * height
+
+        timer = _PassTimer(gl, self.measure_timings)
+        gl.glViewport(0, 0, width, height)
+        gl.glDisable(gl.GL_BLEND)
+        gl.glDisable(gl.GL_CULL_FACE)
+
+        # the scene's colour (read by the shading pass) and depth (occludes the fluid)
+        gl.glBindFramebuffer(gl.GL_READ_FRAMEBUFFER, r._frame_fbo)
+        gl.glBindFramebuffer(gl.GL_DRAW_FRAMEBUFFER, t["fbo_scene"])
+        gl.glBlitFramebuffer(
+            0, 0, width, height, 0, 0, width, height, gl.GL_COLOR_BUFFER_BIT | gl.GL_DEPTH_BUFFER_BIT, gl.GL_NEAREST
+        )
+        gl.glBindFramebuffer(gl.GL_DRAW_FRAMEBUFFER, t["fbo_depth"])
+        gl.glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, gl.GL_DEPTH_BUFFER_BIT, gl.GL_NEAREST)
+        timer.mark("copy_scene")
+
+        # 1. thickness: additive, tested against the scene only
+        gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, t["fbo_optical"])
+        gl.glClearColor(0.0, 0.0, 0.0, 0.0)
+        gl.glClear(gl.GL_COLOR_BUFFER_BIT)
+        gl.glEnable(gl.GL_DEPTH_TEST)
+        gl.glDepthFunc(gl.GL_LESS)
+        gl.glDepthMask(gl.GL_FALSE)
+        gl.glEnable(gl.GL_BLEND)
+        gl.glBlendFunc(gl.GL_ONE, gl.GL_ONE)
+        prog = self._programs["thickness"]
+        prog.use()
+        self._set_camera(gl, prog, view, proj)
+        _uniform1f(gl, prog, "splat_scale", THICKNESS_SPLAT_SCALE)
+        for _, batch in batches:
+            _uniform1f(gl, prog, "radius_scale", batch.material.radius_scale)
+            gl.glUniform3f(_loc(gl, prog, "absorption"), *batch.material.absorption_coefficients())
+            self._draw_batch(gl, batch)
+        prog.stop()
+        gl.glDisable(gl.GL_BLEND)
+        timer.mark("thickness")
+
+        # 2. depth: nearest ellipsoid surface, written to the depth buffer too
+        gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, t["fbo_depth"])
+        gl.glClear(gl.GL_COLOR_BUFFER_BIT)
+        gl.glDepthMask(gl.GL_TRUE)
+        prog = self._programs["depth"]
+        prog.use()
+        self._set_camera(gl, prog, view, proj)
+        _uniform1f(gl, prog, "splat_scale", 1.0)
+        for index, batch in batches:
+            _uniform1f(gl, prog, "radius_scale", batch.material.radius_scale)
+            _uniform1f(gl, prog, "batch_index", float(index))
+            self._draw_batch(gl, batch)
+        prog.stop()
+        gl.glDisable(gl.GL_DEPTH_TEST)
+        timer.mark("depth")
+
+        # 3. smooth: horizontal into depth_blur, vertical back into depth
+        blur = np.zeros(shaders.MAX_BATCHES, dtype=np.float32)
+        for index, batch in batches:
+            blur[index] = self._blur_radius(batch)
+        prog = self._programs["filter"]
+        prog.use()
+        _uniform1f(gl, prog, "focal_px", focal_px)
+        gl.glUniform1i(_loc(gl, prog, "max_radius_px"), MAX_FILTER_RADIUS_PX)
+        gl.glUniform1fv(_loc(gl, prog, "blur_radius"), shaders.MAX_BATCHES, _floats(blur))
+        gl.glUniform1i(_loc(gl, prog, "depth_tex"), 0)
+        gl.glActiveTexture(gl.GL_TEXTURE0)
+        gl.glBindVertexArray(self._empty_vao)
+        for source, target, direction in (
+            ("depth", "fbo_blur", (1.0, 0.0)),
+            ("depth_blur", "fbo_depth_only", (0.0, 1.0)),
+        ):
+            gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, t[target])
+            gl.glBindTexture(gl.GL_TEXTURE_2D, t[source])
+            gl.glUniform2f(_loc(gl, prog, "direction"), *direction)
+            gl.glDrawArrays(gl.GL_TRIANGLES, 0, 3)
+        prog.stop()
+        prog = self._programs["optical_filter"]
+        prog.use()
+        _uniform1f(gl, prog, "focal_px", focal_px)
+        gl.glUniform1i(_loc(gl, prog, "max_radius_px"), MAX_FILTER_RADIUS_PX)
+        gl.glUniform1fv(_loc(gl, prog, "blur_radius"), shaders.MAX_BATCHES, _floats(blur))
+        gl.glUniform1i(_loc(gl, prog, "optical_tex"), 0)
+        gl.glUniform1i(_loc(gl, prog, "depth_tex"), 1)
+        gl.glActiveTexture(gl.GL_TEXTURE1)
+        gl.glBindTexture(gl.GL_TEXTURE_2D, t["depth"])
+        gl.glActiveTexture(gl.GL_TEXTURE0)
+        for source, target, direction in (
+            ("optical", "fbo_optical_blur", (1.0, 0.0)),
+            ("optical_blur", "fbo_optical_only", (0.0, 1.0)),
+        ):
+            gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, t[target])
+            gl.glBindTexture(gl.GL_TEXTURE_2D, t[source])
+            gl.glUniform2f(_loc(gl, prog, "direction"), *direction)
+            gl.glDrawArrays(gl.GL_TRIANGLES, 0, 3)
+        prog.stop()
+        timer.mark("smooth")
+
+        # 4. shade into the frame buffer, with the fluid's depth
+        gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, r._frame_fbo)
+        gl.glEnable(gl.GL_DEPTH_TEST)
+        gl.glDepthFunc(gl.GL_ALWAYS)
+        gl.glDepthMask(gl.GL_TRUE)
+        prog = self._programs["shade"]
+        prog.use()
+        self._set_shading(gl, prog, batches, view, proj, width, height)
+        gl.glBindVertexArray(self._empty_vao)
+        gl.glDrawArrays(gl.GL_TRIANGLES, 0, 3)
+        prog.stop()
+        for unit in range(6):
+            gl.glActiveTexture(gl.GL_TEXTURE0 + unit)
+            gl.glBindTexture(gl.GL_TEXTURE_2D, 0)
+        gl.glActiveTexture(gl.GL_TEXTURE0)
+        gl.glDepthFunc(gl.GL_LESS)
+        timer.mark("shade")
+
+        # 5. diffuse particles (foam, spray) against the fluid depth
+        if self.diffuse_hooks:
+            context = FluidFrameContext(
+                depth_texture=t["depth"], width=width, height=height, view=view.copy(), projection=proj.copy()
+            )
+            for hook in self.diffuse_hooks:
+                gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, r._frame_fbo)
+                hook(context)
+            timer.mark("diffuse")
+
+        gl.glBindVertexArray(0)
+        self._present(gl, width, height)
+        timer.mark("present")
+        self.last_timings_ms = timer.finish()
+
+    def _blur_radius(self, batch):
+        m = batch.material
+        if m.blur_radius_world is not None:
+            return float(m.blur_radius_world)
+        if batch.mean_radius is not None:
+            return 1.0 * batch.mean_radius * m.radius_scale
+        return 0.0
+
+    def _draw_batch(self, gl, batch):
+        gl.glBindVertexArray(batch.vao)
+        gl.glDrawArraysInstanced(gl.GL_TRIANGLE_STRIP, 0, 4, batch.count)
+        gl.glBindVertexArray(0)
+
+    @staticmethod
+    def _set_camera(gl, prog, view, proj):
+        gl.glUniformMatrix4fv(
+            _loc(gl, prog, "view"), 1, gl.GL_FALSE, view.ctypes.data_as(ctypes.POINTER(ctypes.c_float))
+        )
+        gl.glUniformMatrix4fv(
+            _loc(gl, prog, "projection"), 1, gl.GL_FALSE, proj.ctypes.data_as(ctypes.POINTER(ctypes.c_float))
+        )
+
+    def _set_shading(self, gl, prog, batches, view, proj, width, height):
+        r = self.renderer
+        self._set_camera(gl, prog, view, proj)
+        n = shaders.MAX_BATCHES
+        color = np.zeros((n, 4), dtype=np.float32)
+        ior = np.ones(n, dtype=np.float32)
+        f0 = np.zeros(n, dtype=np.float32)
+        spec = np.zeros(n, dtype=np.float32)
+        power = np.ones(n, dtype=np.float32)
+        for index, batch in batches:
+            m = batch.material
+            color[index] = m.color
+            ior[index], f0[index] = m.ior, m.reflectance
+            spec[index], power[index] = m.specular_intensity, m.specular_power
+
+        gl.glUniform4fv(_loc(gl, prog, "base_color"), n, _floats(color))
+        gl.glUniform1fv(_loc(gl, prog, "ior"), n, _floats(ior))
+        gl.glUniform1fv(_loc(gl, prog, "reflectance"), n, _floats(f0))
+        gl.glUniform1fv(_loc(gl, prog, "specular_intensity"), n, _floats(spec))
+        gl.glUniform1fv(_loc(gl, prog, "specular_power"), n, _floats(power))
+        light = np.asarray(r._light_space_matrix, dtype=np.float32).reshape(16)
+        gl.glUniformMatrix4fv(_loc(gl, prog, "light_space"), 1, gl.GL_FALSE, _floats(light))
+        sun = np.asarray(r._sun_direction if r._sun_direction is not None else (0.2, -0.3, 0.8), dtype=np.float64)
+        view_rot = view.reshape(4, 4).T[:3, :3]
+        sun_eye = view_rot @ (sun / np.linalg.norm(sun))
+        gl.glUniform3f(_loc(gl, prog, "sun_dir_eye"), *(float(x) for x in sun_eye))
+        gl.glUniform3f(_loc(gl, prog, "sky_upper"), *(float(x) for x in r.sky_upper))
+        gl.glUniform3f(_loc(gl, prog, "sky_lower"), *(float(x) for x in r.sky_lower))
+        gl.glUniform1i(_loc(gl, prog, "up_axis"), int(getattr(r.camera, "up_axis", 2)))
+        gl.glUniform2f(_loc(gl, prog, "inv_size"), 1.0 / width, 1.0 / height)
+        _uniform1f(gl, prog, "env_intensity", float(getattr(r, "_env_intensity", 1.0)))
+        t = self._targets
+        env = r._env_texture
+        shadow = r._shadow_texture if r.draw_shadows else None
+        units = (
+            ("depth_tex", t["depth"]),
+            ("optical_tex", t["optical"]),
+            ("scene_tex", t["scene_color"]),
+            ("env_tex", int(env.value if hasattr(env, "value") else env) if env is not None else 0),
+            ("shadow_tex", int(shadow.value if hasattr(shadow, "value") else shadow) if shadow is not None else 0),
+            ("scene_depth_tex", t["scene_depth"]),
+        )
+        for unit, (uniform, texture) in enumerate(units):
+            gl.glActiveTexture(gl.GL_TEXTURE0 + unit)
+            gl.glBindTexture(gl.GL_TEXTURE_2D, texture)
+            gl.glUniform1i(_loc(gl, prog, uniform), unit)
+        gl.glUniform1i(_loc(gl, prog, "has_env"), int(env is not None))
+        gl.glUniform1i(_loc(gl, prog, "has_shadow"), int(shadow is not None))
+
+    def _present(self, gl, width, height):
+        """Draw the composited frame texture to the window again (what RendererGL.render ended with)."""
+        r = self.renderer
+        gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, 0)
+        gl.glViewport(0, 0, width, height)
+        gl.glDisable(gl.GL_DEPTH_TEST)
+        with r._frame_shader:
+            gl.glActiveTexture(gl.GL_TEXTURE0)
+            gl.glBindTexture(gl.GL_TEXTURE_2D, r._frame_texture)
+            r._frame_shader.update(0)
+            gl.glBindVertexArray(r._frame_vao)
+            gl.glDrawElements(gl.GL_TRIANGLES, len(r._frame_indices), gl.GL_UNSIGNED_INT, None)
+            gl.glBindVertexArray(0)
+            gl.glBindTexture(gl.GL_TEXTURE_2D, 0)
+        gl.glEnable(gl.GL_DEPTH_TEST)
+
+
+@dataclass
+class FluidFrameContext:
+    """What a diffuse-particle hook gets: the smoothed fluid depth and the camera of this frame.
+
+    Attributes:
+        depth_texture: GL texture id, RG32F: linear eye depth [m] of the fluid surface (0: none), batch index.
+        width: Frame width [px].
+        height: Frame height [px].
+        view: View matrix, 16 floats, column-major.
+        projection: Projection matrix, 16 floats, column-major.
+    """
+
+    depth_texture: int
+    width: int
+    height: int
+    view: np.ndarray
+    projection: np.ndarray
+
+
+class _PassTimer:
+    """Wall time of each pass, with glFinish between passes; off (free) unless asked for."""
+
+    def __init__(self, gl, enabled):
+        import time  # noqa: PLC0415
+
+        self._gl, self._enabled, self._clock = gl, enabled, time.perf_counter
+        self._times = {}
+        if enabled:
+            gl.glFinish()
+            self._last = self._clock()
+
+    def mark(self, name):
+        if self._enabled:
+            self._gl.glFinish()
+            now = self._clock()
+            self._times[name] = 1000.0 * (now - self._last)
+            self._last = now
+
+    def finish(self):
+        return dict(self._times)
+
+
+def _loc(gl, prog, name):
+    return gl.glGetUniformLocation(prog.id, name.encode())
+
+
+def _floats(array):
+    return array.ctypes.data_as(ctypes.POINTER(ctypes.c_float))
+
+
+def _uniform1f(gl, prog, name, value):
+    gl.glUniform1f(_loc(gl, prog, name), float(value))
