@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/performance.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|ncu|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|ncu|variants|tolerance|render|tests]...
 set -u
 out=${1:?output folder}; shift
 export PYTHONUNBUFFERED=1
@@ -24,6 +24,14 @@ for what in "$@"; do
       for v in "--density-iterations 2" "--density-iterations 4 --density-tolerance 0.005" \
                "--iterations 1 --density-iterations 4 --density-tolerance 0.005" "--iterations 1 --density-iterations 2"; do
         echo "== $v"; python3 benchmarks/dam_break.py $v --trials 3 --json "$out/dam_break_100k_${v//[ -.]/_}.json" 2>&1 | grep -A1 "^device"
+      done ;;
+    render)
+      # needs an EGL driver (NVIDIA's libEGL_nvidia on a GPU machine) and pyglet on the path
+      ls /usr/lib/x86_64-linux-gnu/ | grep -iE '^libEGL' | tee "$out/egl.txt"
+      for res in "1920 1080" "1280 720"; do
+        read -r w h <<< "$res"
+        PYGLET_HEADLESS=1 python3 benchmarks/render_fluid.py --width "$w" --height "$h" --png "$out/render_100k_${w}x${h}.png" \
+          --json "$out/render_100k_${w}x${h}.json" 2>&1 | grep -v '^Module' | tail -14
       done ;;
     tests)
       python3 -m pytest -q -k cuda newton/tests/test_solver_xpbd_fluid.py newton/tests/test_fluid_examples.py \

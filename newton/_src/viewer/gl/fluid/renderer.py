@@ -258,13 +258,15 @@ class FluidRendererGL:
             return
         self._release_targets(gl)
 
-        def texture(internal, fmt, kind):
+        half = _half_size(width, height)
+
+        def texture(internal, fmt, kind, size=(width, height), filtering=gl.GL_NEAREST):
             ids = (gl.GLuint * 1)()
             gl.glGenTextures(1, ids)
             gl.glBindTexture(gl.GL_TEXTURE_2D, ids[0])
-            gl.glTexImage2D(gl.GL_TEXTURE_2D, 0, internal, width, height, 0, fmt, kind, None)
-            gl.glTexParameteri(gl.GL_TEXTURE_2D, gl.GL_TEXTURE_MIN_FILTER, gl.GL_NEAREST)
-            gl.glTexParameteri(gl.GL_TEXTURE_2D, gl.GL_TEXTURE_MAG_FILTER, gl.GL_NEAREST)
+            gl.glTexImage2D(gl.GL_TEXTURE_2D, 0, internal, size[0], size[1], 0, fmt, kind, None)
+            gl.glTexParameteri(gl.GL_TEXTURE_2D, gl.GL_TEXTURE_MIN_FILTER, filtering)
+            gl.glTexParameteri(gl.GL_TEXTURE_2D, gl.GL_TEXTURE_MAG_FILTER, filtering)
             gl.glTexParameteri(gl.GL_TEXTURE_2D, gl.GL_TEXTURE_WRAP_S, gl.GL_CLAMP_TO_EDGE)
             gl.glTexParameteri(gl.GL_TEXTURE_2D, gl.GL_TEXTURE_WRAP_T, gl.GL_CLAMP_TO_EDGE)
             return int(ids[0])
@@ -285,18 +287,16 @@ class FluidRendererGL:
         t = {
             "depth": texture(gl.GL_RG32F, gl.GL_RG, gl.GL_FLOAT),
             "depth_blur": texture(gl.GL_RG32F, gl.GL_RG, gl.GL_FLOAT),
-            "optical": texture(gl.GL_RGBA16F, gl.GL_RGBA, gl.GL_FLOAT),
-            "optical_blur": texture(gl.GL_RGBA16F, gl.GL_RGBA, gl.GL_FLOAT),
+            # thickness varies slowly and is blurred anyway: half resolution, read with linear filtering
+            "optical": texture(gl.GL_RGBA16F, gl.GL_RGBA, gl.GL_FLOAT, half, gl.GL_LINEAR),
+            "optical_blur": texture(gl.GL_RGBA16F, gl.GL_RGBA, gl.GL_FLOAT, half),
+            "zbuffer_half": texture(gl.GL_DEPTH_COMPONENT32, gl.GL_DEPTH_COMPONENT, gl.GL_FLOAT, half),
             "scene_depth": texture(gl.GL_DEPTH_COMPONENT32, gl.GL_DEPTH_COMPONENT, gl.GL_FLOAT),
-            "scene_color": texture(gl.GL_RGB8, gl.GL_RGB, gl.GL_UNSIGNED_BYTE),
+            "scene_color": texture(gl.GL_RGB8, gl.GL_RGB, gl.GL_UNSIGNED_BYTE, filtering=gl.GL_LINEAR),
             "zbuffer": texture(gl.GL_DEPTH_COMPONENT32, gl.GL_DEPTH_COMPONENT, gl.GL_FLOAT),
         }
-        gl.glBindTexture(gl.GL_TEXTURE_2D, t["scene_color"])
-        gl.glTexParameteri(gl.GL_TEXTURE_2D, gl.GL_TEXTURE_MIN_FILTER, gl.GL_LINEAR)
-        gl.glTexParameteri(gl.GL_TEXTURE_2D, gl.GL_TEXTURE_MAG_FILTER, gl.GL_LINEAR)
-        gl.glBindTexture(gl.GL_TEXTURE_2D, 0)
         t["fbo_depth"] = framebuffer(t["depth"], t["zbuffer"])
-        t["fbo_optical"] = framebuffer(t["optical"], t["zbuffer"])
+        t["fbo_optical"] = framebuffer(t["optical"], t["zbuffer_half"])
         t["fbo_blur"] = framebuffer(t["depth_blur"])
         t["fbo_depth_only"] = framebuffer(t["depth"])
         t["fbo_scene"] = framebuffer(t["scene_color"], t["scene_depth"])
@@ -329,7 +329,8 @@ class FluidRendererGL:
 
     def read_texture(self, which: str) -> np.ndarray:
         """Read one internal target back (testing aid): ``"depth"`` (smoothed linear depth [m] and batch
-        index, 0 depth where there is no fluid) or ``"optical"`` (absorbance per channel and thickness [m]).
+        index, 0 depth where there is no fluid) or ``"optical"`` (absorbance per channel and thickness [m],
+        at half the frame's resolution).
 
         Rows are bottom-up, as OpenGL stores them.
         """
@@ -379,9 +380,13 @@ class FluidRendererGL:
         )
         gl.glBindFramebuffer(gl.GL_DRAW_FRAMEBUFFER, t["fbo_depth"])
         gl.glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, gl.GL_DEPTH_BUFFER_BIT, gl.GL_NEAREST)
+        half = _half_size(width, height)
+        gl.glBindFramebuffer(gl.GL_DRAW_FRAMEBUFFER, t["fbo_optical"])
+        gl.glBlitFramebuffer(0, 0, width, height, 0, 0, half[0], half[1], gl.GL_DEPTH_BUFFER_BIT, gl.GL_NEAREST)
         timer.mark("copy_scene")
 
-        # 1. thickness: additive, tested against the scene only
+        # 1. thickness: additive, tested against the scene only, at half resolution
+        gl.glViewport(0, 0, half[0], half[1])
         gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, t["fbo_optical"])
         gl.glClearColor(0.0, 0.0, 0.0, 0.0)
         gl.glClear(gl.GL_COLOR_BUFFER_BIT)
@@ -403,6 +408,7 @@ class FluidRendererGL:
         timer.mark("thickness")
 
         # 2. depth: nearest ellipsoid surface, written to the depth buffer too
+        gl.glViewport(0, 0, width, height)
         gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, t["fbo_depth"])
         gl.glClear(gl.GL_COLOR_BUFFER_BIT)
         gl.glDepthMask(gl.GL_TRUE)
@@ -441,7 +447,9 @@ class FluidRendererGL:
         prog.stop()
         prog = self._programs["optical_filter"]
         prog.use()
-        _uniform1f(gl, prog, "focal_px", focal_px)
+        gl.glViewport(0, 0, half[0], half[1])
+        _uniform1f(gl, prog, "focal_px", focal_px * half[1] / height)
+        gl.glUniform1i(_loc(gl, prog, "depth_step"), 2)
         gl.glUniform1i(_loc(gl, prog, "max_radius_px"), MAX_FILTER_RADIUS_PX)
         gl.glUniform1fv(_loc(gl, prog, "blur_radius"), shaders.MAX_BATCHES, _floats(blur))
         gl.glUniform1i(_loc(gl, prog, "optical_tex"), 0)
@@ -458,6 +466,7 @@ class FluidRendererGL:
             gl.glUniform2f(_loc(gl, prog, "direction"), *direction)
             gl.glDrawArrays(gl.GL_TRIANGLES, 0, 3)
         prog.stop()
+        gl.glViewport(0, 0, width, height)
         timer.mark("smooth")
 
         # 4. shade into the frame buffer, with the fluid's depth
@@ -625,6 +634,10 @@ class _PassTimer:
 
 def _loc(gl, prog, name):
     return gl.glGetUniformLocation(prog.id, name.encode())
+
+
+def _half_size(width, height):
+    return (width + 1) // 2, (height + 1) // 2
 
 
 def _floats(array):

@@ -11,9 +11,10 @@ light in linear space and converts back.
 
 MAX_BATCHES = 16
 
-# Instanced billboard of one ellipsoid. The quad sits in the plane through the centre that faces
-# the eye and is as large as the tangent cone of the ellipsoid's bounding sphere, so every ray
-# that can hit the ellipsoid crosses it.
+# Instanced screen-space quad of one ellipsoid: its exact projected bounding rectangle (Sigg,
+# Weyrich, Botsch & Gross, "GPU-based ray-casting of quadratic surfaces", 2006), placed at the
+# front of the ellipsoid's bounding sphere so that every ray-cast depth lies behind the quad
+# (conservative depth keeps early depth rejection working).
 ELLIPSOID_VERTEX = """
 #version 330 core
 layout(location = 0) in vec2 corner;
@@ -32,13 +33,27 @@ flat out vec3 v_center;
 flat out mat3 v_to_unit;
 flat out float v_volume_share;
 
+// interval of one clip coordinate (row) over the unit sphere mapped by T, in NDC
+vec2 projected_interval(vec4 row, vec4 row_w)
+{
+    const vec4 q = vec4(1.0, 1.0, 1.0, -1.0);
+    float a = dot(row, q * row_w);
+    float b = dot(row_w, q * row_w);
+    float c = dot(row, q * row);
+    float h = sqrt(max(a * a - b * c, 0.0));
+    vec2 x = vec2(a - h, a + h) / b;
+    return vec2(min(x.x, x.y), max(x.x, x.y));
+}
+
 void main()
 {
     mat3 rot = mat3(view);
     float r = center_radius.w * radius_scale * splat_scale;
     vec3 s = r * max(vec3(axis1.w, axis2.w, axis3.w), vec3(1.0e-3));
-    mat3 axes = mat3(normalize(rot * axis1.xyz), normalize(rot * axis2.xyz), normalize(rot * axis3.xyz));
-    v_to_unit = mat3(1.0 / s.x, 0.0, 0.0, 0.0, 1.0 / s.y, 0.0, 0.0, 0.0, 1.0 / s.z) * transpose(axes);
+    vec3 e1 = normalize(rot * axis1.xyz);
+    vec3 e2 = normalize(rot * axis2.xyz);
+    vec3 e3 = normalize(rot * axis3.xyz);
+    v_to_unit = mat3(1.0 / s.x, 0.0, 0.0, 0.0, 1.0 / s.y, 0.0, 0.0, 0.0, 1.0 / s.z) * transpose(mat3(e1, e2, e3));
 
     // a particle of radius r stands for a cube of fluid of edge 2r: chords are scaled so that the
     // splats of a lattice integrate to its volume
@@ -48,21 +63,21 @@ void main()
     vec3 c = (view * vec4(center_radius.xyz, 1.0)).xyz;
     v_center = c;
     float bound = max(s.x, max(s.y, s.z));
-    float d = length(c);
-    if (d <= bound * 1.0001) {
-        // the eye is inside this particle: drop it rather than cover the screen
+    float near = projection[3][2] / (projection[2][2] - 1.0);
+    float front = -(c.z + bound);
+    if (front <= near) {
+        // reaches the near plane (or the eye): dropped rather than clipped into a wrong shape
         gl_Position = vec4(2.0, 2.0, 2.0, 1.0);
         v_ray = vec3(0.0);
         return;
     }
-    vec3 w = c / d;
-    vec3 up = abs(w.y) < 0.99 ? vec3(0.0, 1.0, 0.0) : vec3(1.0, 0.0, 0.0);
-    vec3 u = normalize(cross(up, w));
-    vec3 v = cross(w, u);
-    float half_size = bound * d / sqrt(d * d - bound * bound);
-    vec3 p = c + half_size * (corner.x * u + corner.y * v);
-    v_ray = p;
-    gl_Position = projection * vec4(p, 1.0);
+    mat4 t = projection * mat4(vec4(e1 * s.x, 0.0), vec4(e2 * s.y, 0.0), vec4(e3 * s.z, 0.0), vec4(c, 1.0));
+    vec4 row_w = vec4(t[0][3], t[1][3], t[2][3], t[3][3]);
+    vec2 bx = projected_interval(vec4(t[0][0], t[1][0], t[2][0], t[3][0]), row_w);
+    vec2 by = projected_interval(vec4(t[0][1], t[1][1], t[2][1], t[3][1]), row_w);
+    vec2 ndc = vec2(mix(bx.x, bx.y, 0.5 + 0.5 * corner.x), mix(by.x, by.y, 0.5 + 0.5 * corner.y));
+    v_ray = vec3(ndc.x / projection[0][0], ndc.y / projection[1][1], -1.0);
+    gl_Position = vec4(ndc * front, projection[2][2] * -front + projection[3][2], front);
 }
 """
 
@@ -102,6 +117,8 @@ float window_depth(vec3 p)
 DEPTH_FRAGMENT = (
     """
 #version 330 core
+#extension GL_ARB_conservative_depth : enable
+layout(depth_greater) out float gl_FragDepth;
 """
     + _ELLIPSOID_HIT
     + """
@@ -123,6 +140,8 @@ void main()
 THICKNESS_FRAGMENT = (
     """
 #version 330 core
+#extension GL_ARB_conservative_depth : enable
+layout(depth_greater) out float gl_FragDepth;
 """
     + _ELLIPSOID_HIT
     + """
@@ -206,14 +225,15 @@ void main()
 }}
 """
 
-# Separable Gaussian of the optical depth with the width of the depth filter at the pixel's depth:
-# it removes the ripple that the sum of splats of a lattice leaves in the thickness.
+# Separable Gaussian of the optical depth (kept at half resolution) with the width of the depth
+# filter at the pixel's depth: it removes the ripple the splats of a lattice leave in the sum.
 OPTICAL_FILTER_FRAGMENT = f"""
 #version 330 core
 #define MAX_BATCHES {MAX_BATCHES}
 in vec2 v_uv;
 uniform sampler2D optical_tex;
 uniform sampler2D depth_tex;
+uniform int depth_step;
 uniform vec2 direction;
 uniform float focal_px;
 uniform int max_radius_px;
@@ -224,7 +244,7 @@ void main()
 {{
     ivec2 pix = ivec2(gl_FragCoord.xy);
     vec4 center = texelFetch(optical_tex, pix, 0);
-    vec2 s = texelFetch(depth_tex, pix, 0).rg;
+    vec2 s = texelFetch(depth_tex, pix * depth_step, 0).rg;
     float world = s.r > 0.0 ? blur_radius[int(s.g + 0.5)] : 0.0;
     float sigma_px = s.r > 0.0 ? world * focal_px / s.r : 0.0;
     if (sigma_px < 0.5) {{
@@ -342,7 +362,7 @@ void main()
     if (dot(n, v) < 0.0)
         n = -n;
 
-    vec4 optical = texelFetch(optical_tex, pix, 0);
+    vec4 optical = texture(optical_tex, v_uv);
     vec3 transmission = exp(-optical.rgb);
 
     // refraction: shift the lookup of the scene behind along the normal, more for thicker fluid

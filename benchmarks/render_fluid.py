@@ -1,0 +1,152 @@
+# SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
+# SPDX-License-Identifier: Apache-2.0
+
+"""Cost of drawing the fluid surface: update_render_particles plus each ViewerGL fluid pass.
+
+Simulates the dam break (``fluid_xpbd_dam_break`` scene, ``--particles``) for ``--sim-frames``
+frames, then draws ``--frames`` frames headless (EGL) at ``--width`` x ``--height`` and reports
+the median wall time of each fluid pass (``glFinish`` between passes, so the sum is a bound on
+what the passes add to a frame), of the instance upload (``log_fluid``), and of the whole
+``end_frame`` with and without the fluid. Writes a PNG of the last frame with ``--png``.
+
+Usage::
+
+    PYGLET_HEADLESS=1 python benchmarks/render_fluid.py [--particles N] [--width W --height H] [--json out.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import ctypes
+import json
+import os
+import platform
+import statistics
+import sys
+import time
+
+import numpy as np
+import warp as wp
+
+if not os.environ.get("DISPLAY"):
+    import pyglet
+
+    pyglet.options["headless"] = True
+
+import newton.viewer
+
+import newton
+from newton.examples.fluid.example_fluid_xpbd_dam_break import Example
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--particles", type=int, default=100_000)
+    parser.add_argument("--width", type=int, default=1920)
+    parser.add_argument("--height", type=int, default=1080)
+    parser.add_argument("--sim-frames", type=int, default=45)
+    parser.add_argument("--frames", type=int, default=20)
+    parser.add_argument("--device", default=None)
+    parser.add_argument("--png", default=None)
+    parser.add_argument("--json", default=None)
+    args = parser.parse_args(argv)
+
+    wp.init()
+    device = wp.get_device(args.device)
+    with wp.ScopedDevice(device):
+        viewer = newton.viewer.ViewerGL(width=args.width, height=args.height, headless=True)
+        example = Example(viewer, argparse.Namespace(particle_count=args.particles))
+        for _ in range(args.sim_frames):
+            example.step()
+        wp.synchronize()
+        fluid = viewer.fluid_renderer
+
+        def timed(fn):
+            wp.synchronize()
+            t = time.perf_counter()
+            fn()
+            viewer.renderer.gl.glFinish()
+            wp.synchronize()
+            return 1000.0 * (time.perf_counter() - t)
+
+        plain = [
+            timed(lambda: (viewer.begin_frame(0.0), viewer.log_state(example.state_0), viewer.end_frame()))
+            for _ in range(args.frames)
+        ]
+        render_particles = []
+        upload = []
+        full = []
+        passes = []
+        fluid.measure_timings = True
+        for _ in range(args.frames):
+            render_particles.append(timed(lambda: example.solver.update_render_particles(example.state_0)))
+            viewer.begin_frame(0.0)
+            viewer.log_state(example.state_0)
+            upload.append(
+                timed(
+                    lambda: viewer.log_fluid(
+                        "/fluid",
+                        example.solver.render_positions,
+                        radii=example.model.particle_radius,
+                        radius_scale=1.3,
+                        color=(0.2, 0.45, 0.9, 0.3),
+                        absorption=(4.0, 1.2, 0.5),
+                        anisotropy=example.solver.render_anisotropy,
+                        anisotropy_secondary=example.solver.render_anisotropy_secondary,
+                        anisotropy_tertiary=example.solver.render_anisotropy_tertiary,
+                    )
+                )
+            )
+            full.append(timed(viewer.end_frame))
+            passes.append(dict(fluid.last_timings_ms))
+        if args.png:
+            frame = viewer.get_frame().numpy()
+            try:
+                from PIL import Image  # noqa: PLC0415
+
+                Image.fromarray(frame).save(args.png)
+            except ImportError:
+                np.save(args.png + ".npy", frame)
+        gl = viewer.renderer.gl
+        gl_renderer = ctypes.cast(gl.glGetString(gl.GL_RENDERER), ctypes.c_char_p).value.decode()
+        viewer.close()
+
+    med = statistics.median
+    result = {
+        "machine": platform.node(),
+        "platform": platform.platform(),
+        "device": str(device),
+        "device_name": device.name,
+        "gl_renderer": gl_renderer,
+        "particles": int(example.model.particle_count),
+        "resolution": [args.width, args.height],
+        "cuda_gl_interop": bool(device.is_cuda and fluid._cuda_interop),
+        "ms_update_render_particles": med(render_particles),
+        "ms_log_fluid_upload": med(upload),
+        "ms_end_frame_without_fluid": med(plain),
+        "ms_end_frame_with_fluid_timed_passes": med(full),
+        "ms_per_pass": {k: med([p[k] for p in passes]) for k in passes[0]},
+    }
+    result["ms_fluid_passes_sum"] = sum(v for k, v in result["ms_per_pass"].items() if k != "present")
+    print(f"{'device':<10} {'GL renderer':<32} {'particles':>9} {'resolution':>10}")
+    print(
+        f"{result['device']:<10} {result['gl_renderer'][:32]:<32} {result['particles']:>9} {args.width}x{args.height}"
+    )
+    for key in (
+        "ms_update_render_particles",
+        "ms_log_fluid_upload",
+        "ms_end_frame_without_fluid",
+        "ms_end_frame_with_fluid_timed_passes",
+        "ms_fluid_passes_sum",
+    ):
+        print(f"  {key:<40} {result[key]:8.3f}")
+    for key, value in result["ms_per_pass"].items():
+        print(f"  pass {key:<35} {value:8.3f}")
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(result, f, indent=2)
+    return result
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
