@@ -610,30 +610,41 @@ class FluidFrameContext:
 
 
 class _PassTimer:
-    """Wall time of each pass, with glFinish between passes; off (free) unless asked for."""
+    """GPU time of each pass from GL timestamp queries; off (free) unless asked for.
+
+    Reading the results waits for the frame's GPU work, so only frames that measure pay for it.
+    """
 
     def __init__(self, gl, enabled):
-        import time  # noqa: PLC0415
-
-        self._gl, self._enabled, self._clock = gl, enabled, time.perf_counter
-        self._times = {}
+        self._gl, self._enabled = gl, enabled
+        self._names = []
+        self._queries = []
         if enabled:
-            gl.glFinish()
-            self._last = self._clock()
+            self._stamp()
+
+    def _stamp(self):
+        gl = self._gl
+        query = gl.GLuint()
+        gl.glGenQueries(1, ctypes.byref(query))
+        gl.glQueryCounter(query, gl.GL_TIMESTAMP)
+        self._queries.append(query)
 
     def mark(self, name):
         if self._enabled:
-            self._gl.glFinish()
-            now = self._clock()
-            self._times[name] = 1000.0 * (now - self._last)
-            self._last = now
+            self._stamp()
+            self._names.append(name)
 
     def finish(self):
-        return dict(self._times)
-
-
-def _loc(gl, prog, name):
-    return gl.glGetUniformLocation(prog.id, name.encode())
+        if not self._enabled:
+            return {}
+        gl = self._gl
+        stamps = []
+        for query in self._queries:
+            value = ctypes.c_uint64()
+            gl.glGetQueryObjectui64v(query, gl.GL_QUERY_RESULT, ctypes.byref(value))
+            stamps.append(value.value)
+            gl.glDeleteQueries(1, ctypes.byref(query))
+        return {name: 1.0e-6 * (stamps[k + 1] - stamps[k]) for k, name in enumerate(self._names)}
 
 
 def _half_size(width, height):
@@ -642,6 +653,10 @@ def _half_size(width, height):
 
 def _floats(array):
     return array.ctypes.data_as(ctypes.POINTER(ctypes.c_float))
+
+
+def _loc(gl, prog, name):
+    return gl.glGetUniformLocation(prog.id, name.encode())
 
 
 def _uniform1f(gl, prog, name, value):
