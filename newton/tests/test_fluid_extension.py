@@ -254,6 +254,86 @@ def test_log_fluid_fallback(test, device):
         viewer.log_fluid("/fluid", positions, radii=0.05, radius_scale=0)
 
 
+def _free_port():
+    import socket  # noqa: PLC0415
+
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+def test_log_fluid_every_viewer(test, device):
+    """Every non-GL viewer takes every log_fluid call and draws the batch as points in its colour."""
+    import tempfile  # noqa: PLC0415
+
+    builder = newton.ModelBuilder()
+    builder.add_particle_grid(
+        pos=wp.vec3(0.0),
+        rot=wp.quat_identity(),
+        vel=wp.vec3(0.0),
+        dim_x=3,
+        dim_y=3,
+        dim_z=3,
+        cell_x=0.1,
+        cell_y=0.1,
+        cell_z=0.1,
+        mass=1.0,
+        jitter=0.0,
+        radius_mean=0.05,
+        flags=int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID),
+    )
+    model = builder.finalize(device=device)
+    state = model.state()
+    axes = [
+        wp.array(np.tile(v, (27, 1)).astype(np.float32), dtype=wp.vec4, device=device)
+        for v in np.eye(4)[:3] + [0, 0, 0, 1]
+    ]
+    color = (0.9, 0.3, 0.1, 0.5)
+    with tempfile.TemporaryDirectory() as tmp:
+        viewers = {
+            "null": lambda: newton.viewer.ViewerNull(num_frames=3),
+            "file": lambda: newton.viewer.ViewerFile(os.path.join(tmp, "rec.json")),
+            "usd": lambda: newton.viewer.ViewerUSD(os.path.join(tmp, "fluid.usda"), num_frames=3),
+            "rerun": lambda: newton.viewer.ViewerRerun(web_port=_free_port(), grpc_port=_free_port()),
+            "viser": lambda: newton.viewer.ViewerViser(host="127.0.0.1", port=_free_port(), verbose=False),
+        }
+        for kind, make in viewers.items():
+            with test.subTest(viewer=kind):
+                viewer = make()
+                viewer.set_model(model)
+                for frame, count in enumerate((27, 8, 27)):
+                    viewer.begin_frame(frame / 60.0)
+                    viewer.log_state(state)
+                    viewer.log_fluid(
+                        "/fluid",
+                        state.particle_q[:count],
+                        radii=model.particle_radius[:count],
+                        radius_scale=1.5,
+                        color=color,
+                        absorption=(1.0, 2.0, 3.0),
+                        ior=1.4,
+                        reflectance=0.05,
+                        specular_intensity=0.3,
+                        specular_power=64.0,
+                        blur_radius_world=0.02,
+                        anisotropy=axes[0][:count],
+                        anisotropy_secondary=axes[1][:count],
+                        anisotropy_tertiary=axes[2][:count],
+                    )
+                    viewer.log_fluid("/other", state.particle_q, radii=0.05, hidden=frame == 1)
+                    if frame == 2:
+                        viewer.log_fluid("/other", None)
+                    viewer.end_frame()
+                viewer.close()
+        from pxr import Usd, UsdGeom  # noqa: PLC0415
+
+        stage = Usd.Stage.Open(os.path.join(tmp, "fluid.usda"))
+        prims = [p for p in stage.Traverse() if p.GetName() == "fluid"]
+        test.assertEqual(len(prims), 1, [str(p.GetPath()) for p in stage.Traverse()])
+        colors = UsdGeom.Gprim(prims[0]).GetDisplayColorAttr().Get(Usd.TimeCode(0))
+        np.testing.assert_allclose(np.asarray(colors)[0], color[:3], atol=1.0e-6)
+
+
 def test_log_fluid_draws_points_with_batch_color(test, device):
     calls = []
 
@@ -288,7 +368,11 @@ for _name, _func in list(globals().items()):
             "test_parameter_setters",
             "test_log_fluid_fallback",
         )
-        add_function_test(TestFluidExtension, _name, _func, devices=devices if per_device else cpu)
+        # the web viewers print their addresses
+        check_output = _name != "test_log_fluid_every_viewer"
+        add_function_test(
+            TestFluidExtension, _name, _func, devices=devices if per_device else cpu, check_output=check_output
+        )
 
 if __name__ == "__main__":
     unittest.main(verbosity=2)
