@@ -292,6 +292,53 @@ def test_diffuse_hook_sees_fluid_depth(test, device):
         scene.close()
 
 
+def test_diffuse_sprites(test, device):
+    box = ((0.12, -0.25, 0.1), (0.05, 0.02, 0.1))
+    scene = Scene(boxes=(box,))
+    try:
+        scene.viewer.set_camera(wp.vec3(0.0, -0.9, 0.3), pitch=-15.0, yaw=90.0)
+        pool = ("/pool", lattice((16, 10, 5), (-0.15, -0.1, 0.0)), {"radii": R, "color": (0.2, 0.4, 0.9, 0.0)})
+        # spray above the pool, a bubble inside it, one behind the box, one dead
+        points = np.array([[-0.06, 0.0, 0.2], [-0.06, 0.0, 0.03], [0.12, 0.0, 0.1], [0.0, 0.0, 0.25]], np.float32)
+        life = wp.array([1.0, 1.0, 1.0, 0.0], dtype=float, device="cpu")
+        kinds = wp.array([0, 2, 0, 0], dtype=wp.int32, device="cpu")
+        base, _ = scene.frame([pool], repeat=2)
+        scene.viewer.begin_frame(0.0)
+        scene.viewer.log_state(scene.state)
+        scene.viewer.log_fluid(pool[0], wp.array(pool[1], dtype=wp.vec3, device="cpu"), **pool[2])
+        scene.viewer.log_fluid_diffuse(
+            "/foam",
+            wp.array(points, dtype=wp.vec3, device="cpu"),
+            lifetimes=life,
+            kinds=kinds,
+            radius=0.012,
+            color=(1.0, 1.0, 1.0, 1.0),
+        )
+        scene.viewer.end_frame()
+        image = scene.viewer.get_frame().numpy().astype(np.float64)
+        origin, rays = scene.rays()
+        view = np.asarray(scene.viewer.renderer._view_matrix, np.float64).reshape(4, 4).T
+        proj = np.asarray(scene.viewer.renderer._projection_matrix, np.float64).reshape(4, 4).T
+
+        def pixel(p):
+            clip = proj @ view @ np.append(p, 1.0)
+            ndc = clip[:2] / clip[3]
+            x, y = (ndc * 0.5 + 0.5) * (W, H)
+            return int(H - 1 - y), int(x)  # row in the top-down frame
+
+        gain = [image[pixel(p)].sum() - base[pixel(p)].sum() for p in points]
+        test.assertGreater(gain[0], 150.0, gain)  # spray in the open: bright
+        test.assertGreater(gain[1], 5.0, gain)  # a bubble shows through the fluid,
+        test.assertLess(gain[1], 0.6 * gain[0], gain)  # dimmed by it
+        test.assertLess(abs(gain[2]), 3.0, gain)  # behind the box: hidden
+        test.assertLess(abs(gain[3]), 3.0, gain)  # dead: not drawn
+        # removal
+        scene.viewer.log_fluid_diffuse("/foam", None)
+        test.assertNotIn("/foam", scene.viewer.fluid_renderer.diffuse_batches)
+    finally:
+        scene.close()
+
+
 def test_render_does_not_change_simulation(test, device):
     def simulate(render):
         builder = newton.ModelBuilder()
@@ -366,6 +413,15 @@ def test_bad_material_raises(test, device):
             ):
                 with test.assertRaisesRegex(ValueError, name):
                     viewer.log_fluid("/f", positions, radii=R, **kwargs)
+            for kwargs, name in (
+                ({"radius": 0.0}, "radius"),
+                ({"color": (1.0, 1.0)}, "color"),
+                ({"stretch_time": -1.0}, "stretch_time"),
+                ({"fade_length": 0.0}, "fade_length"),
+                ({"lifetimes": wp.zeros(2, dtype=float, device="cpu")}, "lifetimes"),
+            ):
+                with test.assertRaisesRegex(ValueError, name):
+                    viewer.log_fluid_diffuse("/d", positions, **kwargs)
     finally:
         scene.close()
 

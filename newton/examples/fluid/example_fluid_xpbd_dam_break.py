@@ -111,6 +111,8 @@ class Example:
             fluid_rest_distance=spacing,
             fluid_cohesion=0.5,
             fluid_viscosity=0.05,
+            # spray and foam where the wave breaks, for the picture only
+            max_diffuse_particles=args.particle_count // 4,
         )
         self.state_0 = self.model.state()
         self.state_1 = self.model.state()
@@ -166,6 +168,14 @@ class Example:
             anisotropy=self.solver.render_anisotropy,
             anisotropy_secondary=self.solver.render_anisotropy_secondary,
             anisotropy_tertiary=self.solver.render_anisotropy_tertiary,
+        )
+        self.viewer.log_fluid_diffuse(
+            "/foam",
+            self.solver.diffuse_positions,
+            self.solver.diffuse_velocities,
+            self.solver.diffuse_lifetimes,
+            self.solver.diffuse_kinds,
+            radius=0.25 * self.scene["spacing"],
         )
         self.viewer.end_frame()
 

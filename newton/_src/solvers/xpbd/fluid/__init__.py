@@ -97,6 +97,18 @@ def _render_property(name: str):
     )
 
 
+def _diffuse(solver):
+    return None if solver._fluid is None else solver._fluid.diffuse
+
+
+def _diffuse_property(field: str, doc: str):
+    return property(
+        lambda self: None if _diffuse(self) is None else getattr(_diffuse(self), field),
+        doc=f"Diffuse (spray, foam, bubble) particles' {doc}: a ``wp.array`` of ``max_diffuse_particles`` "
+        "entries, updated every substep; ``None`` when ``max_diffuse_particles`` is 0.",
+    )
+
+
 def fluid_diagnostics(self, state) -> dict:
     """Density and neighbourhood statistics of the fluid at ``state``.
 
@@ -223,6 +235,18 @@ def activate(xpbd_module) -> None:
         "render_anisotropy_tertiary",
     ):
         setattr(cls, name, _render_property(name))
+    for name, field, doc in (
+        ("diffuse_positions", "position", "positions [m] (``wp.vec3``)"),
+        ("diffuse_velocities", "velocity", "velocities [m/s] (``wp.vec3``)"),
+        ("diffuse_lifetimes", "lifetime", "remaining lifetimes [s] (float; <= 0: a dead entry)"),
+        ("diffuse_kinds", "kind", "kinds (int32: 0 spray, 1 foam, 2 bubble, -1 dead)"),
+    ):
+        setattr(cls, name, _diffuse_property(field, doc))
+    cls.diffuse_emitted_count = property(
+        lambda self: None if _diffuse(self) is None else _diffuse(self).counters[1:2],
+        doc="Device counter (``wp.array`` of one int32) of diffuse particles emitted so far, or ``None`` when "
+        "``max_diffuse_particles`` is 0.",
+    )
     cls.fluid_density = property(
         lambda self: None if self._fluid is None else self._fluid.particle_density,
         doc="Per-particle density [kg/m^3] at the state of the last :meth:`fluid_diagnostics` call "
@@ -252,7 +276,8 @@ _FLUID_DOC = """
             fluid_density_tolerance: Mean compression (of max(rho/rho0 - 1, 0)) at which the density passes
                 of an iteration stop, >= 0. Defaults to 0 (no early stop). Only used with fluid_max_iterations > 1.
             fluid_max_iterations: Density passes per XPBD iteration, in [1, 64]. Defaults to 1.
-            max_diffuse_particles: Capacity of diffuse (foam/spray) particles, >= 0; 0 is off.
+            max_diffuse_particles: Capacity of the ring buffer of diffuse (spray, foam, bubble) particles, >= 0;
+                0 is off (no cost). See ``diffuse_positions`` and the other ``diffuse_*`` attributes.
 """
 
 

@@ -20,6 +20,13 @@ import numpy as np
 import warp as wp
 
 from ....geometry import ParticleFlags
+from .diffuse import (
+    DIFFUSE_DEAD,
+    DiffuseBuffers,
+    advect_diffuse_particles,
+    count_diffuse_substep,
+    emit_diffuse_particles,
+)
 from .kernels import (
     COMPRESSION_BINS,
     FluidParams,
@@ -248,6 +255,18 @@ class FluidSolver:
             self.particle_density = wp.zeros(model.particle_count, dtype=float)
             self._summary = wp.zeros(_SUMMARY_SIZE, dtype=float)
         self._slots_hold_positions = False
+        self.diffuse = None
+        if config.max_diffuse_particles > 0:
+            c = config.max_diffuse_particles
+            with wp.ScopedDevice(self.device):
+                self.diffuse = DiffuseBuffers()
+                self.diffuse.position = wp.zeros(c, dtype=wp.vec3)
+                self.diffuse.velocity = wp.zeros(c, dtype=wp.vec3)
+                self.diffuse.lifetime = wp.zeros(c, dtype=float)
+                self.diffuse.kind = wp.full(c, DIFFUSE_DEAD, dtype=wp.int32)
+                self.diffuse.world = wp.zeros(c, dtype=wp.int32)
+                self.diffuse.counters = wp.zeros(3, dtype=wp.int32)
+                self._no_bodies = wp.zeros(0, dtype=wp.transform)
         # render particles, allocated by the first update_render_particles()
         self.render_positions = None
         self.render_anisotropy = None
@@ -427,6 +446,57 @@ class FluidSolver:
             dim=self.fluid_count,
             inputs=[self.fluid_particle, self.model.particle_flags],
             outputs=[state_out.particle_q, state_out.particle_qd, self.last_finite_q, self.nonfinite_count],
+            device=self.device,
+        )
+        if self.diffuse is not None:
+            self._diffuse_pass(state_out, dt)
+
+    def _diffuse_pass(self, state_out, dt: float) -> None:
+        """Let the fluid emit diffuse particles, then advect them all (new ones leave shapes at once)."""
+        s, m, b = self.search, self.model, self.diffuse
+        wp.launch(count_diffuse_substep, dim=1, outputs=[b.counters], device=self.device)
+        body_q = state_out.body_q if state_out.body_q is not None else self._no_bodies
+        wp.launch(
+            emit_diffuse_particles,
+            dim=self.fluid_count,
+            inputs=[
+                self.params,
+                s.slots,
+                self.density,
+                state_out.particle_q,
+                state_out.particle_qd,
+                m.particle_world,
+                dt,
+                b.position.shape[0],
+            ],
+            outputs=[b],
+            device=self.device,
+        )
+        wp.launch(
+            advect_diffuse_particles,
+            dim=b.position.shape[0],
+            inputs=[
+                self.params,
+                s.keys,
+                s.cell_start,
+                s.cell_end,
+                s.sorted_particle,
+                s.sorted_world,
+                s.inv_cell,
+                s.cell_bits,
+                state_out.particle_q,
+                state_out.particle_qd,
+                m.gravity,
+                m.shape_type,
+                m.shape_scale,
+                m.shape_transform,
+                m.shape_body,
+                m.shape_world,
+                body_q,
+                m.shape_count,
+                dt,
+            ],
+            outputs=[b],
             device=self.device,
         )
 

@@ -1,7 +1,8 @@
 # SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
 # SPDX-License-Identifier: Apache-2.0
 
-"""``viewer.log_fluid``: a fluid surface in ViewerGL, points in the batch colour everywhere else.
+"""``viewer.log_fluid`` and ``viewer.log_fluid_diffuse``: a fluid surface and foam sprites in ViewerGL,
+points in the batch colour everywhere else.
 
 :func:`activate` is the one place that extends the upstream viewers: it adds ``log_fluid`` to
 ``ViewerBase`` (the point fallback every viewer inherits), overrides it on ``ViewerGL`` with the
@@ -240,6 +241,139 @@ def log_fluid_gl(
     fluid.set_batch(qualified, positions, radii, material, axes, hidden)
 
 
+@wp.kernel
+def _diffuse_point_radii(lifetimes: wp.array[float], kinds: wp.array[wp.int32], radius: float, radii: wp.array[float]):
+    i = wp.tid()
+    r = radius
+    if lifetimes.shape[0] > 0:
+        if lifetimes[i] <= 0.0:
+            r = 0.0
+    if kinds.shape[0] > 0:
+        if kinds[i] < 0:
+            r = 0.0
+    radii[i] = r
+
+
+def _check_diffuse(positions, velocities, lifetimes, kinds, radius, color, stretch_time, fade_length):
+    def bad(name, value, valid):
+        return ValueError(f"{name}={value!r} is out of range: expected {valid}")
+
+    if not (math.isfinite(radius) and radius > 0.0):
+        raise bad("radius", radius, "a value in (0, inf) [m]")
+    c = np.asarray(color, dtype=np.float64).ravel()
+    if c.size not in (3, 4) or not np.all(np.isfinite(c)) or np.any(c < 0.0) or np.any(c > 1.0):
+        raise bad("color", color, "3 or 4 values (RGB or RGBA) in [0, 1]")
+    if not (math.isfinite(stretch_time) and stretch_time >= 0.0):
+        raise bad("stretch_time", stretch_time, "a value in [0, inf) [s]")
+    if not (math.isfinite(fade_length) and fade_length > 0.0):
+        raise bad("fade_length", fade_length, "a value in (0, inf) [m]")
+    for name, a, dtype in (
+        ("velocities", velocities, wp.vec3),
+        ("lifetimes", lifetimes, wp.float32),
+        ("kinds", kinds, wp.int32),
+    ):
+        if a is not None and (a.dtype != dtype or len(a) < len(positions)):
+            raise ValueError(
+                f"{name}={a!r} is invalid: expected None or a {dtype.__name__} array with at least {len(positions)} entries"
+            )
+    return tuple(float(x) for x in c) + ((1.0,) if c.size == 3 else ())
+
+
+def log_fluid_diffuse(
+    self,
+    name: str,
+    positions: wp.array | None,
+    velocities: wp.array | None = None,
+    lifetimes: wp.array | None = None,
+    kinds: wp.array | None = None,
+    *,
+    radius: float = 0.005,
+    color: tuple = (1.0, 1.0, 1.0, 0.8),
+    stretch_time: float = 1.0 / 60.0,
+    fade_length: float = 0.05,
+    hidden: bool = False,
+) -> None:
+    """Log a batch of diffuse particles (spray, foam, bubbles), e.g. ``solver.diffuse_positions``.
+
+    ViewerGL draws each live particle as a soft sprite stretched along its screen-space motion,
+    composited with the fluid surface: a particle behind the surface fades with the depth of fluid
+    in front of it (bubbles show faintly through water), one behind scene geometry is hidden. Every
+    other viewer draws the live particles as points in ``color``.
+
+    Args:
+        name: Unique path of the batch; ``positions=None`` removes it.
+        positions: Positions [m], ``wp.array`` of ``wp.vec3``.
+        velocities: Velocities [m/s] (``wp.vec3``) for the motion stretch, e.g. ``solver.diffuse_velocities``.
+        lifetimes: Remaining lifetimes [s]; entries <= 0 are not drawn (``solver.diffuse_lifetimes``).
+        kinds: Kinds (int32; negative: not drawn; 2: bubble, drawn darker), e.g. ``solver.diffuse_kinds``.
+        radius: Sprite radius [m], in (0, inf).
+        color: RGB or RGBA in [0, 1]; alpha is the opacity of a sprite's centre.
+        stretch_time: The sprite spans the distance moved in this time [s], in [0, inf).
+        fade_length: Depth of fluid [m] in front of a particle that dims it by 1/e, in (0, inf).
+        hidden: Whether the batch is hidden.
+
+    Raises:
+        ValueError: An argument is out of its range (the message names it, its value and the range).
+    """
+    if positions is None:
+        self.log_points(name, None, hidden=True)
+        return
+    rgba = _check_diffuse(positions, velocities, lifetimes, kinds, radius, color, stretch_time, fade_length)
+    _log_diffuse_points(self, name, positions, lifetimes, kinds, radius, rgba, hidden)
+
+
+def _log_diffuse_points(viewer, name, positions, lifetimes, kinds, radius, rgba, hidden):
+    device = positions.device
+    radii = wp.empty(len(positions), dtype=float, device=device)
+    wp.launch(
+        _diffuse_point_radii,
+        dim=len(positions),
+        inputs=[
+            lifetimes if lifetimes is not None else wp.empty(0, dtype=float, device=device),
+            kinds if kinds is not None else wp.empty(0, dtype=wp.int32, device=device),
+            float(radius),
+        ],
+        outputs=[radii],
+        device=device,
+    )
+    colors = wp.full(len(positions), wp.vec3(*rgba[:3]), dtype=wp.vec3, device=device)
+    viewer.log_points(name, positions, radii=radii, colors=colors, hidden=hidden)
+
+
+def log_fluid_diffuse_gl(
+    self,
+    name: str,
+    positions: wp.array | None,
+    velocities: wp.array | None = None,
+    lifetimes: wp.array | None = None,
+    kinds: wp.array | None = None,
+    *,
+    radius: float = 0.005,
+    color: tuple = (1.0, 1.0, 1.0, 0.8),
+    stretch_time: float = 1.0 / 60.0,
+    fade_length: float = 0.05,
+    hidden: bool = False,
+) -> None:
+    from .renderer import DiffuseMaterial  # noqa: PLC0415
+
+    qualified = self._qualify(name)
+    fluid = fluid_renderer(self)
+    if positions is None:
+        fluid.remove_diffuse_batch(qualified)
+        self.log_points(name, None, hidden=True)
+        return
+    rgba = _check_diffuse(positions, velocities, lifetimes, kinds, radius, color, stretch_time, fade_length)
+    if not self.fluid_surface:
+        if qualified in fluid.diffuse_batches:
+            fluid.diffuse_batches[qualified].hidden = True
+        _log_diffuse_points(self, name, positions, lifetimes, kinds, radius, rgba, hidden)
+        return
+    if qualified in self.objects:
+        self.objects[qualified].hidden = True
+    material = DiffuseMaterial(color=rgba, stretch_time=float(stretch_time), fade_length=float(fade_length))
+    fluid.set_diffuse_batch(qualified, positions, velocities, lifetimes, kinds, radius, material, hidden)
+
+
 def fluid_renderer(self):
     """The :class:`~newton._src.viewer.gl.fluid.renderer.FluidRendererGL` of this ViewerGL (created on first use)."""
     renderer = self.renderer
@@ -268,10 +402,13 @@ def activate(viewer_module) -> None:
     check_upstream(viewer_module)
     if not hasattr(viewer_module.ViewerBase, "log_fluid"):
         viewer_module.ViewerBase.log_fluid = log_fluid
+        viewer_module.ViewerBase.log_fluid_diffuse = log_fluid_diffuse
     gl_viewer = viewer_module.ViewerGL
     if getattr(gl_viewer.log_fluid, "__name__", "") != "log_fluid_gl":
         log_fluid_gl.__doc__ = log_fluid.__doc__
         gl_viewer.log_fluid = log_fluid_gl
+        log_fluid_diffuse_gl.__doc__ = log_fluid_diffuse.__doc__
+        gl_viewer.log_fluid_diffuse = log_fluid_diffuse_gl
         gl_viewer.fluid_surface = property(
             _fluid_surface_get,
             _fluid_surface_set,
@@ -286,7 +423,7 @@ def activate(viewer_module) -> None:
         def render(self, *args, **kwargs):
             upstream_render(self, *args, **kwargs)
             fluid = getattr(self, "_newton_fluid", None)
-            if fluid is not None and fluid.visible_batches():
+            if fluid is not None and fluid.has_work():
                 missing = [n for n in _FRAME_NAMES if not hasattr(self, n)]
                 if missing:
                     raise _upstream_error([f"RendererGL.{n}" for n in missing])

@@ -66,6 +66,44 @@ def pack_fluid_instances(
         instances[i, 3] = wp.vec4(0.0, 0.0, 1.0, 1.0)
 
 
+@wp.kernel
+def pack_diffuse_instances(
+    positions: wp.array[wp.vec3],
+    velocities: wp.array[wp.vec3],
+    lifetimes: wp.array[float],
+    kinds: wp.array[wp.int32],
+    radius: float,
+    # outputs
+    instances: wp.array2d[wp.vec4],
+):
+    """Two vec4 per diffuse particle: centre and radius (0: not drawn), velocity and kind."""
+    i = wp.tid()
+    r = radius
+    if lifetimes.shape[0] > 0:
+        if lifetimes[i] <= 0.0:
+            r = 0.0
+    kind = float(1.0)
+    if kinds.shape[0] > 0:
+        kind = float(kinds[i])
+        if kinds[i] < 0:
+            r = 0.0
+    v = wp.vec3(0.0)
+    if velocities.shape[0] > 0:
+        v = velocities[i]
+    p = positions[i]
+    instances[i, 0] = wp.vec4(p[0], p[1], p[2], r)
+    instances[i, 1] = wp.vec4(v[0], v[1], v[2], kind)
+
+
+@dataclass
+class DiffuseMaterial:
+    """Look of one batch of diffuse particles; see ``log_fluid_diffuse``."""
+
+    color: tuple = (1.0, 1.0, 1.0, 0.8)
+    stretch_time: float = 1.0 / 60.0
+    fade_length: float = 0.05
+
+
 @dataclass
 class FluidMaterial:
     """Look of one fluid batch; see :func:`log_fluid` for the meaning and units of each field."""
@@ -98,6 +136,7 @@ class FluidBatchGL:
     vao: int = 0
     mean_radius: float = 0.0
     hidden: bool = False
+    vec4_per_instance: int = 4
     packed: wp.array | None = None
     registered: object = None
     extra: dict = field(default_factory=dict)
@@ -109,6 +148,7 @@ class FluidRendererGL:
     def __init__(self, renderer):
         self.renderer = renderer
         self.batches: dict[str, FluidBatchGL] = {}
+        self.diffuse_batches: dict[str, FluidBatchGL] = {}
         self.diffuse_hooks: list = []
         self.size = (0, 0)
         self._programs = None
@@ -143,7 +183,7 @@ class FluidRendererGL:
             self._allocate_batch(gl, batch, max(n, 2 * batch.capacity, 256))
         device = positions.device
         if batch.packed is None or batch.packed.device != device:
-            batch.packed = wp.empty((batch.capacity, 4), dtype=wp.vec4, device=device)
+            batch.packed = wp.empty((batch.capacity, batch.vec4_per_instance), dtype=wp.vec4, device=device)
         scalar = isinstance(radii, float)
         if scalar:
             batch.mean_radius = radii
@@ -168,6 +208,52 @@ class FluidRendererGL:
             device=device,
         )
         self._upload(gl, batch, n)
+
+    def set_diffuse_batch(self, name, positions, velocities, lifetimes, kinds, radius, material, hidden):
+        gl = self.renderer.gl
+        self.renderer._make_current()
+        batch = self.diffuse_batches.get(name)
+        if batch is None:
+            batch = FluidBatchGL(material=material, vec4_per_instance=2)
+            self.diffuse_batches[name] = batch
+        batch.material = material
+        batch.hidden = hidden
+        n = len(positions)
+        batch.count = n
+        if n == 0:
+            return
+        self._ensure_common(gl)
+        if n > batch.capacity:
+            self._allocate_batch(gl, batch, max(n, 2 * batch.capacity, 256))
+        device = positions.device
+        if batch.packed is None or batch.packed.device != device:
+            batch.packed = wp.empty((batch.capacity, 2), dtype=wp.vec4, device=device)
+        none_v = wp.empty(0, dtype=wp.vec3, device=device)
+        none_f = wp.empty(0, dtype=float, device=device)
+        none_i = wp.empty(0, dtype=wp.int32, device=device)
+        wp.launch(
+            pack_diffuse_instances,
+            dim=n,
+            inputs=[
+                positions,
+                none_v if velocities is None else velocities,
+                none_f if lifetimes is None else lifetimes,
+                none_i if kinds is None else kinds,
+                float(radius),
+            ],
+            outputs=[batch.packed],
+            device=device,
+        )
+        self._upload(gl, batch, n)
+
+    def remove_diffuse_batch(self, name):
+        batch = self.diffuse_batches.pop(name, None)
+        if batch is not None and batch.vbo:
+            gl = self.renderer.gl
+            self.renderer._make_current()
+            batch.registered = None
+            gl.glDeleteBuffers(1, ctypes.byref(gl.GLuint(batch.vbo)))
+            gl.glDeleteVertexArrays(1, ctypes.byref(gl.GLuint(batch.vao)))
 
     def hide_batch(self, name):
         if name in self.batches:
@@ -194,13 +280,14 @@ class FluidRendererGL:
             gl.glEnableVertexAttribArray(0)
             gl.glVertexAttribPointer(0, 2, gl.GL_FLOAT, gl.GL_FALSE, 8, ctypes.c_void_p(0))
             gl.glBindBuffer(gl.GL_ARRAY_BUFFER, batch.vbo)
-            for k in range(4):
+            stride = 16 * batch.vec4_per_instance
+            for k in range(batch.vec4_per_instance):
                 gl.glEnableVertexAttribArray(1 + k)
-                gl.glVertexAttribPointer(1 + k, 4, gl.GL_FLOAT, gl.GL_FALSE, 64, ctypes.c_void_p(16 * k))
+                gl.glVertexAttribPointer(1 + k, 4, gl.GL_FLOAT, gl.GL_FALSE, stride, ctypes.c_void_p(16 * k))
                 gl.glVertexAttribDivisor(1 + k, 1)
             gl.glBindVertexArray(0)
         gl.glBindBuffer(gl.GL_ARRAY_BUFFER, batch.vbo)
-        gl.glBufferData(gl.GL_ARRAY_BUFFER, capacity * 64, None, gl.GL_DYNAMIC_DRAW)
+        gl.glBufferData(gl.GL_ARRAY_BUFFER, capacity * 16 * batch.vec4_per_instance, None, gl.GL_DYNAMIC_DRAW)
         gl.glBindBuffer(gl.GL_ARRAY_BUFFER, 0)
         batch.capacity = capacity
         batch.registered = None
@@ -214,8 +301,8 @@ class FluidRendererGL:
                     batch.registered = wp.RegisteredGLBuffer(
                         batch.vbo, packed.device, flags=wp.RegisteredGLBuffer.WRITE_DISCARD
                     )
-                mapped = batch.registered.map(dtype=wp.vec4, shape=(batch.capacity, 4))
-                wp.copy(mapped, packed, count=4 * n)
+                mapped = batch.registered.map(dtype=wp.vec4, shape=(batch.capacity, batch.vec4_per_instance))
+                wp.copy(mapped, packed, count=batch.vec4_per_instance * n)
                 batch.registered.unmap()
                 return
             except Exception:
@@ -242,6 +329,7 @@ class FluidRendererGL:
             "filter": program(shaders.FULLSCREEN_VERTEX, shaders.FILTER_FRAGMENT),
             "optical_filter": program(shaders.FULLSCREEN_VERTEX, shaders.OPTICAL_FILTER_FRAGMENT),
             "shade": program(shaders.FULLSCREEN_VERTEX, shaders.SHADE_FRAGMENT),
+            "diffuse": program(shaders.DIFFUSE_VERTEX, shaders.DIFFUSE_FRAGMENT),
         }
         quad = np.array([-1.0, -1.0, 1.0, -1.0, -1.0, 1.0, 1.0, 1.0], dtype=np.float32)
         ids = (gl.GLuint * 1)()
@@ -321,6 +409,8 @@ class FluidRendererGL:
         gl = self.renderer.gl
         for name in list(self.batches):
             self.remove_batch(name)
+        for name in list(self.diffuse_batches):
+            self.remove_diffuse_batch(name)
         self._release_targets(gl)
         if self._programs is not None:
             for p in self._programs.values():
@@ -350,10 +440,16 @@ class FluidRendererGL:
     def visible_batches(self):
         return [(i, b) for i, b in enumerate(self.batches.values()) if not b.hidden and b.count > 0]
 
+    def visible_diffuse_batches(self):
+        return [b for b in self.diffuse_batches.values() if not b.hidden and b.count > 0]
+
+    def has_work(self):
+        return bool(self.visible_batches() or self.visible_diffuse_batches())
+
     def render(self):
         """Composite the fluid into the renderer's frame buffer and present it again."""
         batches = self.visible_batches()
-        if not batches:
+        if not self.has_work():
             return
         r = self.renderer
         gl = r.gl
@@ -385,6 +481,38 @@ class FluidRendererGL:
         gl.glBlitFramebuffer(0, 0, width, height, 0, 0, half[0], half[1], gl.GL_DEPTH_BUFFER_BIT, gl.GL_NEAREST)
         timer.mark("copy_scene")
 
+        if batches:
+            self._draw_surface(gl, batches, view, proj, focal_px, width, height, timer)
+        else:
+            # only diffuse particles: no fluid surface in front of them
+            gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, t["fbo_depth_only"])
+            gl.glClearColor(0.0, 0.0, 0.0, 0.0)
+            gl.glClear(gl.GL_COLOR_BUFFER_BIT)
+
+        # 5. diffuse particles (spray, foam, bubbles), then the hooks, against the fluid depth
+        diffuse = self.visible_diffuse_batches()
+        if diffuse:
+            self._draw_diffuse(gl, diffuse, view, proj)
+            timer.mark("diffuse")
+        if self.diffuse_hooks:
+            context = FluidFrameContext(
+                depth_texture=t["depth"], width=width, height=height, view=view.copy(), projection=proj.copy()
+            )
+            for hook in self.diffuse_hooks:
+                gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, r._frame_fbo)
+                hook(context)
+            timer.mark("hooks")
+
+        gl.glBindVertexArray(0)
+        self._present(gl, width, height)
+        timer.mark("present")
+        self.last_timings_ms = timer.finish()
+
+    def _draw_surface(self, gl, batches, view, proj, focal_px, width, height, timer):
+        """Passes 1-4: thickness, depth, smoothing and shading of the fluid batches."""
+        r = self.renderer
+        t = self._targets
+        half = _half_size(width, height)
         # 1. thickness: additive, tested against the scene only, at half resolution
         gl.glViewport(0, 0, half[0], half[1])
         gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, t["fbo_optical"])
@@ -487,20 +615,36 @@ class FluidRendererGL:
         gl.glDepthFunc(gl.GL_LESS)
         timer.mark("shade")
 
-        # 5. diffuse particles (foam, spray) against the fluid depth
-        if self.diffuse_hooks:
-            context = FluidFrameContext(
-                depth_texture=t["depth"], width=width, height=height, view=view.copy(), projection=proj.copy()
-            )
-            for hook in self.diffuse_hooks:
-                gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, r._frame_fbo)
-                hook(context)
-            timer.mark("diffuse")
-
-        gl.glBindVertexArray(0)
-        self._present(gl, width, height)
-        timer.mark("present")
-        self.last_timings_ms = timer.finish()
+    def _draw_diffuse(self, gl, diffuse, view, proj):
+        """Velocity-stretched sprites of the diffuse batches, blended into the frame buffer."""
+        t = self._targets
+        gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, self.renderer._frame_fbo)
+        gl.glDisable(gl.GL_DEPTH_TEST)
+        gl.glDepthMask(gl.GL_FALSE)
+        gl.glEnable(gl.GL_BLEND)
+        gl.glBlendFunc(gl.GL_ONE, gl.GL_ONE_MINUS_SRC_ALPHA)
+        prog = self._programs["diffuse"]
+        prog.use()
+        self._set_camera(gl, prog, view, proj)
+        for unit, (uniform, texture) in enumerate(
+            (("fluid_depth_tex", t["depth"]), ("scene_depth_tex", t["scene_depth"]))
+        ):
+            gl.glActiveTexture(gl.GL_TEXTURE0 + unit)
+            gl.glBindTexture(gl.GL_TEXTURE_2D, texture)
+            gl.glUniform1i(_loc(gl, prog, uniform), unit)
+        for batch in diffuse:
+            m = batch.material
+            gl.glUniform4f(_loc(gl, prog, "color"), *m.color)
+            _uniform1f(gl, prog, "stretch_time", m.stretch_time)
+            _uniform1f(gl, prog, "fade_length", m.fade_length)
+            self._draw_batch(gl, batch)
+        prog.stop()
+        for unit in range(2):
+            gl.glActiveTexture(gl.GL_TEXTURE0 + unit)
+            gl.glBindTexture(gl.GL_TEXTURE_2D, 0)
+        gl.glActiveTexture(gl.GL_TEXTURE0)
+        gl.glDisable(gl.GL_BLEND)
+        gl.glDepthMask(gl.GL_TRUE)
 
     def _blur_radius(self, batch):
         m = batch.material

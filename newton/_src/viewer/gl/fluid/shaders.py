@@ -397,3 +397,77 @@ void main()
     gl_FragDepth = surface_depth;
 }}
 """
+
+# Velocity-stretched sprite of one diffuse particle (spray, foam, bubble): a camera-facing quad
+# elongated along the particle's screen-space motion. It is tested against the scene's depth in
+# the shader (the frame's depth buffer holds the fluid surface by now) and fades with the depth
+# of fluid in front of it, so bubbles show faintly through the surface.
+DIFFUSE_VERTEX = """
+#version 330 core
+layout(location = 0) in vec2 corner;
+layout(location = 1) in vec4 center_radius;
+layout(location = 2) in vec4 velocity_kind;
+
+uniform mat4 view;
+uniform mat4 projection;
+uniform float stretch_time;
+
+out vec2 v_corner;
+flat out float v_depth;
+flat out float v_radius;
+flat out float v_kind;
+
+void main()
+{
+    float r = center_radius.w;
+    if (r <= 0.0) {
+        gl_Position = vec4(2.0, 2.0, 2.0, 1.0);
+        return;
+    }
+    vec3 c = (view * vec4(center_radius.xyz, 1.0)).xyz;
+    vec3 vel = mat3(view) * velocity_kind.xyz;
+    float speed = length(vel.xy);
+    vec2 along = speed > 1.0e-6 ? vel.xy / speed : vec2(1.0, 0.0);
+    vec2 across = vec2(-along.y, along.x);
+    float half_length = r + 0.5 * speed * stretch_time;
+    vec3 p = c + vec3(corner.x * half_length * along + corner.y * r * across, 0.0);
+    v_corner = corner;
+    v_depth = -c.z;
+    v_radius = r;
+    v_kind = velocity_kind.w;
+    gl_Position = projection * vec4(p, 1.0);
+}
+"""
+
+DIFFUSE_FRAGMENT = """
+#version 330 core
+in vec2 v_corner;
+flat in float v_depth;
+flat in float v_radius;
+flat in float v_kind;
+
+uniform sampler2D fluid_depth_tex;
+uniform sampler2D scene_depth_tex;
+uniform mat4 projection;
+uniform vec4 color;
+uniform float fade_length;
+layout(location = 0) out vec4 out_color;
+
+void main()
+{
+    float d2 = dot(v_corner, v_corner);
+    if (d2 > 1.0)
+        discard;
+    ivec2 pix = ivec2(gl_FragCoord.xy);
+    vec4 clip = projection * vec4(0.0, 0.0, -v_depth, 1.0);
+    if (texelFetch(scene_depth_tex, pix, 0).r < clip.z / clip.w * 0.5 + 0.5)
+        discard;
+    float alpha = color.a * (1.0 - d2);
+    float fluid = texelFetch(fluid_depth_tex, pix, 0).r;
+    if (fluid > 0.0 && v_depth > fluid + v_radius)
+        alpha *= exp(-(v_depth - fluid) / fade_length);
+    // bubbles are darker rims, spray and foam are white
+    vec3 rgb = v_kind > 1.5 ? color.rgb * 0.8 : color.rgb;
+    out_color = vec4(rgb * alpha, alpha);
+}
+"""

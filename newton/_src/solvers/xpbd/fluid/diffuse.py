@@ -1,0 +1,281 @@
+# SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
+# SPDX-License-Identifier: Apache-2.0
+
+"""Diffuse particles: spray, foam and bubbles emitted by the fluid, for rendering only.
+
+After Ihmsen, Akinci, Akinci & Teschner, "Unified spray, foam and bubbles for particle-based
+fluids", The Visual Computer 28, 2012, simplified. Once per substep, after the fluid solve, new
+particles are emitted (2.) and then all live ones advected (1.), so that a new particle placed
+inside a shape leaves it in the same substep:
+
+1. **advect** every live diffuse particle with the fluid velocity interpolated at its position
+   (a kernel-weighted mean over the fluid particles within h); it is classified by how many fluid
+   particles are within h: *spray* (fewer than ``SPRAY_MAX_NEIGHBORS``) flies ballistically under
+   gravity, *foam* (in between) moves with the fluid, *bubble* (at least ``BUBBLE_MIN_NEIGHBORS``)
+   rises against gravity and is dragged toward the fluid velocity. Shapes (planes, boxes, spheres,
+   capsules) push it out and remove its velocity into them (one caught where shapes overlap dies).
+   Its lifetime runs down; at zero it dies.
+2. **emit**: each fluid particle has a trapped-air potential (the relative speed of neighbours
+   approaching it, ``sum |v_ij| (1 - v_ij.x_ij / |v_ij||x_ij|) (1 - r/h)`` [m/s]) and a wave-crest
+   potential (how far below rest density it is, if it moves along its outward surface normal),
+   each clamped to [0, 1] between two thresholds and scaled by its kinetic-energy potential; with
+   the probability ``rate * dt * (trapped air + wave crest) * energy`` it emits one diffuse
+   particle at a random point within half a rest distance, with its velocity.
+
+The particles live in a fixed-capacity ring buffer (the oldest is overwritten when it is full);
+counters and random numbers (a hash of the substep counter and the particle) stay on the device,
+so the passes can be captured in a graph. Nothing here feeds back into the fluid.
+"""
+
+import warp as wp
+
+from ....geometry import GeoType
+from .kernels import FluidParams, FluidSlots, fluid_neighbor, fluid_neighbor_count
+from .neighbors import _NO_WORLD, fluid_cell, fluid_cell_hash
+
+DIFFUSE_DEAD = wp.constant(-1)
+DIFFUSE_SPRAY = wp.constant(0)
+DIFFUSE_FOAM = wp.constant(1)
+DIFFUSE_BUBBLE = wp.constant(2)
+
+SPRAY_MAX_NEIGHBORS = wp.constant(6)
+BUBBLE_MIN_NEIGHBORS = wp.constant(20)
+# potentials map linearly to [0, 1] between these thresholds
+TRAPPED_AIR_MIN = wp.constant(2.0)  # [m/s]
+TRAPPED_AIR_MAX = wp.constant(10.0)
+WAVE_CREST_MIN = wp.constant(0.05)  # (1 - rho/rho0) * cos(v, n), dimensionless
+WAVE_CREST_MAX = wp.constant(0.3)
+ENERGY_MIN = wp.constant(0.5)  # kinetic energy per unit mass [m^2/s^2]
+ENERGY_MAX = wp.constant(5.0)
+EMISSION_RATE = wp.constant(200.0)  # diffuse particles per fluid particle per second at full potential
+LIFETIME_MIN = wp.constant(1.0)  # [s]
+LIFETIME_MAX = wp.constant(3.0)
+BUBBLE_BUOYANCY = wp.constant(2.0)  # upward acceleration of a bubble, in units of |g|
+BUBBLE_DRAG = wp.constant(0.5)  # per-substep blend of a bubble's velocity toward the fluid's
+
+
+@wp.struct
+class DiffuseBuffers:
+    """The ring buffer of diffuse particles."""
+
+    position: wp.array[wp.vec3]  # [m]
+    velocity: wp.array[wp.vec3]  # [m/s]
+    lifetime: wp.array[float]  # remaining life [s], <= 0 for a dead entry
+    kind: wp.array[wp.int32]  # DIFFUSE_SPRAY, _FOAM, _BUBBLE or _DEAD
+    world: wp.array[wp.int32]
+    counters: wp.array[wp.int32]  # [0]: next ring index, [1]: emitted in total, [2]: substeps so far
+
+
+@wp.func
+def _potential(value: float, lo: float, hi: float):
+    return wp.clamp((value - lo) / (hi - lo), 0.0, 1.0)
+
+
+@wp.kernel
+def emit_diffuse_particles(
+    params: wp.array[FluidParams],
+    slots: FluidSlots,
+    density: wp.array[float],
+    particle_q: wp.array[wp.vec3],
+    particle_qd: wp.array[wp.vec3],
+    particle_world: wp.array[wp.int32],
+    dt: float,
+    capacity: int,
+    # outputs
+    buffers: DiffuseBuffers,
+):
+    i = wp.tid()
+    pi = slots.particle[i]
+    if pi < 0:
+        return
+    p = params[0]
+    xi = particle_q[pi]
+    vi = particle_qd[pi]
+    trapped_air = float(0.0)
+    normal = wp.vec3(0.0)
+    count = fluid_neighbor_count(slots, i)
+    for k in range(count):
+        pj = slots.particle[fluid_neighbor(slots, i, k)]
+        xij = xi - particle_q[pj]
+        r = wp.length(xij)
+        if r >= p.h or r <= 0.0:
+            continue
+        w = 1.0 - r / p.h
+        xhat = xij / r
+        normal += w * xhat
+        vij = vi - particle_qd[pj]
+        speed = wp.length(vij)
+        if speed > 0.0:
+            trapped_air += speed * (1.0 - wp.dot(vij / speed, xhat)) * w
+    speed_i = wp.length(vi)
+    wave_crest = float(0.0)
+    n_len = wp.length(normal)
+    if n_len > 0.0 and speed_i > 0.0:
+        along = wp.dot(vi / speed_i, normal / n_len)
+        if along >= 0.6:
+            wave_crest = wp.max(1.0 - density[i] * p.inv_rest_density, 0.0) * along
+    energy = _potential(0.5 * speed_i * speed_i, ENERGY_MIN, ENERGY_MAX)
+    chance = EMISSION_RATE * dt * energy
+    chance *= _potential(trapped_air, TRAPPED_AIR_MIN, TRAPPED_AIR_MAX) + _potential(
+        wave_crest, WAVE_CREST_MIN, WAVE_CREST_MAX
+    )
+    if chance <= 0.0:
+        return
+    rng = wp.rand_init(buffers.counters[2] * 7919 + 1, pi)
+    if wp.randf(rng) >= chance:
+        return
+    index = wp.atomic_add(buffers.counters, 0, 1)
+    wp.atomic_add(buffers.counters, 1, 1)
+    slot = index % capacity
+    if slot < 0:
+        slot += capacity
+    offset = wp.sample_unit_sphere(rng) * (0.5 * p.rest_distance)
+    buffers.position[slot] = xi + offset
+    buffers.velocity[slot] = vi
+    buffers.lifetime[slot] = LIFETIME_MIN + (LIFETIME_MAX - LIFETIME_MIN) * wp.randf(rng)
+    buffers.kind[slot] = DIFFUSE_FOAM
+    buffers.world[slot] = particle_world[pi]
+
+
+@wp.func
+def _shape_distance(shape_type: int, scale: wp.vec3, p: wp.vec3):
+    """Signed distance [m] (xyz: outward normal in the shape frame, w: distance) of local point ``p``."""
+    if shape_type == GeoType.PLANE:
+        return wp.vec4(0.0, 0.0, 1.0, p[2])
+    if shape_type == GeoType.SPHERE:
+        r = wp.length(p)
+        n = wp.where(r > 0.0, p / wp.max(r, 1.0e-12), wp.vec3(0.0, 0.0, 1.0))
+        return wp.vec4(n[0], n[1], n[2], r - scale[0])
+    if shape_type == GeoType.CAPSULE:
+        axis_z = wp.clamp(p[2], -scale[1], scale[1])
+        radial = p - wp.vec3(0.0, 0.0, axis_z)
+        r = wp.length(radial)
+        n = wp.where(r > 0.0, radial / wp.max(r, 1.0e-12), wp.vec3(1.0, 0.0, 0.0))
+        return wp.vec4(n[0], n[1], n[2], r - scale[0])
+    if shape_type == GeoType.BOX:
+        q = wp.vec3(wp.abs(p[0]) - scale[0], wp.abs(p[1]) - scale[1], wp.abs(p[2]) - scale[2])
+        outside = wp.vec3(wp.max(q[0], 0.0), wp.max(q[1], 0.0), wp.max(q[2], 0.0))
+        out_len = wp.length(outside)
+        if out_len > 0.0:
+            n = wp.vec3(wp.sign(p[0]) * outside[0], wp.sign(p[1]) * outside[1], wp.sign(p[2]) * outside[2]) / out_len
+            return wp.vec4(n[0], n[1], n[2], out_len)
+        # inside: the nearest face
+        n = wp.vec3(wp.sign(p[0]), 0.0, 0.0)
+        depth = q[0]
+        if q[1] > depth:
+            n = wp.vec3(0.0, wp.sign(p[1]), 0.0)
+            depth = q[1]
+        if q[2] > depth:
+            n = wp.vec3(0.0, 0.0, wp.sign(p[2]))
+            depth = q[2]
+        return wp.vec4(n[0], n[1], n[2], depth)
+    return wp.vec4(0.0, 0.0, 1.0, 1.0e10)
+
+
+@wp.kernel
+def advect_diffuse_particles(
+    params: wp.array[FluidParams],
+    keys: wp.array[wp.int32],
+    cell_start: wp.array[wp.int32],
+    cell_end: wp.array[wp.int32],
+    sorted_particle: wp.array[wp.int32],
+    sorted_world: wp.array[wp.int32],
+    inv_cell: float,
+    cell_bits: int,
+    particle_q: wp.array[wp.vec3],
+    particle_qd: wp.array[wp.vec3],
+    gravity: wp.array[wp.vec3],
+    shape_type: wp.array[wp.int32],
+    shape_scale: wp.array[wp.vec3],
+    shape_transform: wp.array[wp.transform],
+    shape_body: wp.array[wp.int32],
+    shape_world: wp.array[wp.int32],
+    body_q: wp.array[wp.transform],
+    shape_count: int,
+    dt: float,
+    # outputs
+    buffers: DiffuseBuffers,
+):
+    k = wp.tid()
+    life = buffers.lifetime[k]
+    if life <= 0.0:
+        return
+    p = params[0]
+    x = buffers.position[k]
+    v = buffers.velocity[k]
+    world = buffers.world[k]
+    slot_count = sorted_world.shape[0]
+    c = fluid_cell(x, inv_cell)
+    count = int(0)
+    v_fluid = wp.vec3(0.0)
+    w_sum = float(0.0)
+    for dz in range(-1, 2):
+        for dy in range(-1, 2):
+            for dx in range(-1, 2):
+                key = fluid_cell_hash(c[0] + dx, c[1] + dy, c[2] + dz, world, cell_bits)
+                start = cell_start[key]
+                if start >= slot_count or keys[start] != key:
+                    continue
+                for j in range(start, cell_end[key]):
+                    pj = sorted_particle[j]
+                    if pj < 0 or sorted_world[j] == _NO_WORLD:
+                        continue
+                    r = wp.length(x - particle_q[pj])
+                    if r >= p.h:
+                        continue
+                    w = 1.0 - r / p.h
+                    v_fluid += w * particle_qd[pj]
+                    w_sum += w
+                    count += 1
+    g = gravity[wp.max(world, 0)]
+    kind = DIFFUSE_FOAM
+    if count < SPRAY_MAX_NEIGHBORS:
+        kind = DIFFUSE_SPRAY
+        v = v + g * dt
+    elif count < BUBBLE_MIN_NEIGHBORS:
+        v = v_fluid / w_sum
+    else:
+        kind = DIFFUSE_BUBBLE
+        v = v - BUBBLE_BUOYANCY * g * dt
+        v = v + BUBBLE_DRAG * (v_fluid / w_sum - v)
+    x = x + v * dt
+
+    radius = 0.25 * p.rest_distance
+    # push out of every shape; where shapes overlap (tank corners) one push can land in the next
+    # shape, so a second round follows, and a particle still inside after it dies
+    trapped = int(0)
+    for push_round in range(3):
+        trapped = int(0)
+        for s in range(shape_count):
+            sw = shape_world[s]
+            if sw >= 0 and world >= 0 and sw != world:
+                continue
+            xf = shape_transform[s]
+            b = shape_body[s]
+            if b >= 0:
+                xf = body_q[b] * shape_transform[s]
+            local = wp.transform_point(wp.transform_inverse(xf), x)
+            hit = _shape_distance(shape_type[s], shape_scale[s], local)
+            if hit[3] < radius:
+                trapped = int(1)
+                if push_round < 2:
+                    n = wp.transform_vector(xf, wp.vec3(hit[0], hit[1], hit[2]))
+                    x = x + (radius - hit[3]) * n
+                    vn = wp.dot(v, n)
+                    if vn < 0.0:
+                        v = v - vn * n
+    if trapped != 0:
+        life = 0.0
+
+    life -= dt
+    if life <= 0.0:
+        kind = DIFFUSE_DEAD
+    buffers.position[k] = x
+    buffers.velocity[k] = v
+    buffers.lifetime[k] = life
+    buffers.kind[k] = kind
+
+
+@wp.kernel
+def count_diffuse_substep(counters: wp.array[wp.int32]):
+    counters[2] = counters[2] + 1
