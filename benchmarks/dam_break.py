@@ -110,6 +110,7 @@ def run(args) -> dict:
         fluid_relaxation=args.relaxation,
         fluid_density_tolerance=args.density_tolerance,
         fluid_max_iterations=args.density_iterations,
+        max_diffuse_particles=args.diffuse,
     )
     # contacts reach one diameter from the surface, where the walls' ghost density has vanished
     collision = newton.CollisionPipeline(model, soft_contact_max=model.particle_count, soft_contact_gap=0.5 * spacing)
@@ -189,6 +190,8 @@ def run(args) -> dict:
         "density_subiterations_per_substep": solver.fluid_diagnostics(states[0])["density_subiterations"]
         / max(1, (args.warmup_frames + 2 + args.trials * args.frames) * args.substeps),
         "viscosity": args.viscosity,
+        "max_diffuse_particles": args.diffuse,
+        "diffuse_emitted": int(solver.diffuse_emitted_count.numpy()[0]) if args.diffuse else 0,
         "speed_clamp_radii_per_substep": args.speed_clamp,
         "cuda_graph": graph is not None,
         "sim_time_s": (args.warmup_frames + 2 + args.trials * args.frames) * frame_dt,
@@ -211,6 +214,7 @@ def main(argv=None):
     parser.add_argument("--density-iterations", type=int, default=1, help="fluid_max_iterations")
     parser.add_argument("--density-tolerance", type=float, default=0.0, help="fluid_density_tolerance")
     parser.add_argument("--viscosity", type=float, default=0.05)
+    parser.add_argument("--diffuse", type=int, default=0, help="max_diffuse_particles (0: off)")
     parser.add_argument("--speed-clamp", type=float, default=0.5, help="max displacement per substep [radii]; 0: off")
     parser.add_argument("--warmup-frames", type=int, default=60)
     parser.add_argument("--frames", type=int, default=30, help="frames per timed trial")

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/performance.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|ncu|variants|tolerance|render|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|ncu|variants|tolerance|diffuse|render|gltests|tests]...
 set -u
 out=${1:?output folder}; shift
 export PYTHONUNBUFFERED=1
@@ -33,11 +33,15 @@ for what in "$@"; do
         PYGLET_HEADLESS=1 python3 benchmarks/render_fluid.py --width "$w" --height "$h" --png "$out/render_100k_${w}x${h}.png" \
           --json "$out/render_100k_${w}x${h}.json" 2>&1 | grep -v '^Module' | tail -14
       done ;;
+    diffuse)
+      # the same run with diffuse particles on (25,000 capacity), against the plain one of 'bench'
+      python3 benchmarks/dam_break.py --diffuse 25000 --trials 3 --json "$out/dam_break_100k_diffuse.json" 2>&1 | grep -A1 "^device" ;;
     gltests)
       # the image tests on NVIDIA's GL (the resize test needs Xvfb, which GPU machines lack)
       python3 -m pytest -q newton/tests/test_fluid_render_gl.py -k "not resize" 2>&1 | tail -15 ;;
     tests)
       python3 -m pytest -q -k cuda newton/tests/test_solver_xpbd_fluid.py newton/tests/test_fluid_examples.py \
-        newton/tests/test_fluid_extension.py 2>&1 | tail -25 ;;
+        newton/tests/test_fluid_extension.py newton/tests/test_fluid_diffuse.py newton/tests/test_fluid_render_particles.py \
+        2>&1 | tail -25 ;;
   esac
 done

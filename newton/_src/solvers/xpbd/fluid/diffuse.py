@@ -75,46 +75,54 @@ def _potential(value: float, lo: float, hi: float):
 def emit_diffuse_particles(
     params: wp.array[FluidParams],
     slots: FluidSlots,
+    sorted_v: wp.array[wp.vec3],
     density: wp.array[float],
-    particle_q: wp.array[wp.vec3],
-    particle_qd: wp.array[wp.vec3],
     particle_world: wp.array[wp.int32],
     dt: float,
     capacity: int,
     # outputs
     buffers: DiffuseBuffers,
 ):
+    """One fluid slot: emission potentials from its neighbourhood, then at most one emission.
+
+    Reads the slot-ordered positions and velocities of the step's result (``slots.xm``, ``sorted_v``).
+    """
     i = wp.tid()
     pi = slots.particle[i]
     if pi < 0:
         return
+    vi = sorted_v[i]
+    speed_i = wp.length(vi)
+    # most of a calm or slow fluid fails this test and skips the neighbour loop
+    energy = _potential(0.5 * speed_i * speed_i, ENERGY_MIN, ENERGY_MAX)
+    if energy <= 0.0:
+        return
     p = params[0]
-    xi = particle_q[pi]
-    vi = particle_qd[pi]
+    xi4 = slots.xm[i]
+    xi = wp.vec3(xi4[0], xi4[1], xi4[2])
     trapped_air = float(0.0)
     normal = wp.vec3(0.0)
     count = fluid_neighbor_count(slots, i)
     for k in range(count):
-        pj = slots.particle[fluid_neighbor(slots, i, k)]
-        xij = xi - particle_q[pj]
+        j = fluid_neighbor(slots, i, k)
+        xj4 = slots.xm[j]
+        xij = xi - wp.vec3(xj4[0], xj4[1], xj4[2])
         r = wp.length(xij)
         if r >= p.h or r <= 0.0:
             continue
         w = 1.0 - r / p.h
         xhat = xij / r
         normal += w * xhat
-        vij = vi - particle_qd[pj]
+        vij = vi - sorted_v[j]
         speed = wp.length(vij)
         if speed > 0.0:
             trapped_air += speed * (1.0 - wp.dot(vij / speed, xhat)) * w
-    speed_i = wp.length(vi)
     wave_crest = float(0.0)
     n_len = wp.length(normal)
-    if n_len > 0.0 and speed_i > 0.0:
+    if n_len > 0.0:
         along = wp.dot(vi / speed_i, normal / n_len)
         if along >= 0.6:
             wave_crest = wp.max(1.0 - density[i] * p.inv_rest_density, 0.0) * along
-    energy = _potential(0.5 * speed_i * speed_i, ENERGY_MIN, ENERGY_MAX)
     chance = EMISSION_RATE * dt * energy
     chance *= _potential(trapped_air, TRAPPED_AIR_MIN, TRAPPED_AIR_MAX) + _potential(
         wave_crest, WAVE_CREST_MIN, WAVE_CREST_MAX
@@ -178,12 +186,12 @@ def advect_diffuse_particles(
     keys: wp.array[wp.int32],
     cell_start: wp.array[wp.int32],
     cell_end: wp.array[wp.int32],
-    sorted_particle: wp.array[wp.int32],
+    sorted_xm: wp.array[wp.vec4],
+    sorted_v: wp.array[wp.vec3],
     sorted_world: wp.array[wp.int32],
     inv_cell: float,
     cell_bits: int,
-    particle_q: wp.array[wp.vec3],
-    particle_qd: wp.array[wp.vec3],
+    table_mask: int,
     gravity: wp.array[wp.vec3],
     shape_type: wp.array[wp.int32],
     shape_scale: wp.array[wp.vec3],
@@ -209,22 +217,27 @@ def advect_diffuse_particles(
     count = int(0)
     v_fluid = wp.vec3(0.0)
     w_sum = float(0.0)
+    # a world without fluid has no block in the table: nothing to scan
+    scan = world >= -1 and ((world + 1) << cell_bits) <= table_mask
     for dz in range(-1, 2):
         for dy in range(-1, 2):
             for dx in range(-1, 2):
+                if not scan:
+                    continue
                 key = fluid_cell_hash(c[0] + dx, c[1] + dy, c[2] + dz, world, cell_bits)
                 start = cell_start[key]
                 if start >= slot_count or keys[start] != key:
                     continue
+                # slots of one cell are contiguous: these reads are coalesced
                 for j in range(start, cell_end[key]):
-                    pj = sorted_particle[j]
-                    if pj < 0 or sorted_world[j] == _NO_WORLD:
+                    if sorted_world[j] == _NO_WORLD:
                         continue
-                    r = wp.length(x - particle_q[pj])
+                    xj4 = sorted_xm[j]
+                    r = wp.length(x - wp.vec3(xj4[0], xj4[1], xj4[2]))
                     if r >= p.h:
                         continue
                     w = 1.0 - r / p.h
-                    v_fluid += w * particle_qd[pj]
+                    v_fluid += w * sorted_v[j]
                     w_sum += w
                     count += 1
     g = gravity[wp.max(world, 0)]

@@ -264,7 +264,7 @@ class FluidSolver:
                 self.diffuse.velocity = wp.zeros(c, dtype=wp.vec3)
                 self.diffuse.lifetime = wp.zeros(c, dtype=float)
                 self.diffuse.kind = wp.full(c, DIFFUSE_DEAD, dtype=wp.int32)
-                self.diffuse.world = wp.zeros(c, dtype=wp.int32)
+                self.diffuse.world = wp.full(c, -1, dtype=wp.int32)
                 self.diffuse.counters = wp.zeros(3, dtype=wp.int32)
                 self._no_bodies = wp.zeros(0, dtype=wp.transform)
         # render particles, allocated by the first update_render_particles()
@@ -456,19 +456,18 @@ class FluidSolver:
         s, m, b = self.search, self.model, self.diffuse
         wp.launch(count_diffuse_substep, dim=1, outputs=[b.counters], device=self.device)
         body_q = state_out.body_q if state_out.body_q is not None else self._no_bodies
+        # the step's result in slot order (the viscosity pass gathers the same, before it acts)
+        wp.launch(
+            gather_fluid_state,
+            dim=self.fluid_count,
+            inputs=[s.slots, state_out.particle_q, state_out.particle_qd, m.particle_mass],
+            outputs=[self.sorted_v],
+            device=self.device,
+        )
         wp.launch(
             emit_diffuse_particles,
             dim=self.fluid_count,
-            inputs=[
-                self.params,
-                s.slots,
-                self.density,
-                state_out.particle_q,
-                state_out.particle_qd,
-                m.particle_world,
-                dt,
-                b.position.shape[0],
-            ],
+            inputs=[self.params, s.slots, self.sorted_v, self.density, m.particle_world, dt, b.position.shape[0]],
             outputs=[b],
             device=self.device,
         )
@@ -480,12 +479,12 @@ class FluidSolver:
                 s.keys,
                 s.cell_start,
                 s.cell_end,
-                s.sorted_particle,
+                s.sorted_xm,
+                self.sorted_v,
                 s.sorted_world,
                 s.inv_cell,
                 s.cell_bits,
-                state_out.particle_q,
-                state_out.particle_qd,
+                s.mask,
                 m.gravity,
                 m.shape_type,
                 m.shape_scale,
