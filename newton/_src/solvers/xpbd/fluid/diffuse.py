@@ -38,6 +38,8 @@ DIFFUSE_SPRAY = wp.constant(0)
 DIFFUSE_FOAM = wp.constant(1)
 DIFFUSE_BUBBLE = wp.constant(2)
 
+# threads per diffuse particle in the advection (one per scanned cell, rounded up to a warp)
+DIFFUSE_BLOCK_DIM = 32
 SPRAY_MAX_NEIGHBORS = wp.constant(6)
 BUBBLE_MIN_NEIGHBORS = wp.constant(20)
 # potentials map linearly to [0, 1] between these thresholds
@@ -204,7 +206,9 @@ def advect_diffuse_particles(
     # outputs
     buffers: DiffuseBuffers,
 ):
-    k = wp.tid()
+    # one block per diffuse particle: its lanes scan the 27 cells around it in parallel (a lone
+    # thread per particle would wait on one cell after the other; there are few diffuse particles)
+    k, lane = wp.tid()
     life = buffers.lifetime[k]
     if life <= 0.0:
         return
@@ -214,32 +218,38 @@ def advect_diffuse_particles(
     world = buffers.world[k]
     slot_count = sorted_world.shape[0]
     c = fluid_cell(x, inv_cell)
-    count = int(0)
-    v_fluid = wp.vec3(0.0)
-    w_sum = float(0.0)
     # a world without fluid has no block in the table: nothing to scan
     scan = world >= -1 and ((world + 1) << cell_bits) <= table_mask
-    for dz in range(-1, 2):
-        for dy in range(-1, 2):
-            for dx in range(-1, 2):
-                if not scan:
-                    continue
-                key = fluid_cell_hash(c[0] + dx, c[1] + dy, c[2] + dz, world, cell_bits)
-                start = cell_start[key]
-                if start >= slot_count or keys[start] != key:
-                    continue
-                # slots of one cell are contiguous: these reads are coalesced
-                for j in range(start, cell_end[key]):
-                    if sorted_world[j] == _NO_WORLD:
-                        continue
-                    xj4 = sorted_xm[j]
-                    r = wp.length(x - wp.vec3(xj4[0], xj4[1], xj4[2]))
-                    if r >= p.h:
-                        continue
-                    w = 1.0 - r / p.h
-                    v_fluid += w * sorted_v[j]
-                    w_sum += w
-                    count += 1
+    partial = wp.vec4(0.0)  # weighted fluid velocity (xyz) and weight (w)
+    partial_count = float(0.0)
+    for cell in range(lane, 27, wp.block_dim()):
+        if not scan:
+            continue
+        dx = cell % 3 - 1
+        dy = (cell // 3) % 3 - 1
+        dz = cell // 9 - 1
+        key = fluid_cell_hash(c[0] + dx, c[1] + dy, c[2] + dz, world, cell_bits)
+        start = cell_start[key]
+        if start >= slot_count or keys[start] != key:
+            continue
+        # slots of one cell are contiguous: these reads are coalesced
+        for j in range(start, cell_end[key]):
+            if sorted_world[j] == _NO_WORLD:
+                continue
+            xj4 = sorted_xm[j]
+            r = wp.length(x - wp.vec3(xj4[0], xj4[1], xj4[2]))
+            if r >= p.h:
+                continue
+            w = 1.0 - r / p.h
+            vj = sorted_v[j]
+            partial += wp.vec4(w * vj[0], w * vj[1], w * vj[2], w)
+            partial_count += 1.0
+    total = wp.tile_sum(wp.tile(partial, preserve_type=True))[0]
+    count = int(wp.tile_sum(wp.tile(partial_count))[0] + 0.5)
+    if lane != 0:
+        return
+    v_fluid = wp.vec3(total[0], total[1], total[2])
+    w_sum = total[3]
     g = gravity[wp.max(world, 0)]
     kind = DIFFUSE_FOAM
     if count < SPRAY_MAX_NEIGHBORS:

@@ -21,6 +21,7 @@ import warp as wp
 
 from ....geometry import ParticleFlags
 from .diffuse import (
+    DIFFUSE_BLOCK_DIM,
     DIFFUSE_DEAD,
     DiffuseBuffers,
     advect_diffuse_particles,
@@ -471,9 +472,10 @@ class FluidSolver:
             outputs=[b],
             device=self.device,
         )
-        wp.launch(
+        wp.launch_tiled(
             advect_diffuse_particles,
-            dim=b.position.shape[0],
+            dim=[b.position.shape[0]],
+            block_dim=DIFFUSE_BLOCK_DIM,
             inputs=[
                 self.params,
                 s.keys,
