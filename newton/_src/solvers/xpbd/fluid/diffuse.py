@@ -209,6 +209,9 @@ def advect_diffuse_particles(
     # one block per diffuse particle: its lanes scan the 27 cells around it in parallel (a lone
     # thread per particle would wait on one cell after the other; there are few diffuse particles)
     k, lane = wp.tid()
+    if k == 0 and lane == 0:
+        # the substep counter seeds the next emission's random numbers
+        buffers.counters[2] = buffers.counters[2] + 1
     life = buffers.lifetime[k]
     if life <= 0.0:
         return
@@ -298,7 +301,3 @@ def advect_diffuse_particles(
     buffers.lifetime[k] = life
     buffers.kind[k] = kind
 
-
-@wp.kernel
-def count_diffuse_substep(counters: wp.array[wp.int32]):
-    counters[2] = counters[2] + 1

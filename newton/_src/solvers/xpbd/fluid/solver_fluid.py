@@ -25,7 +25,6 @@ from .diffuse import (
     DIFFUSE_DEAD,
     DiffuseBuffers,
     advect_diffuse_particles,
-    count_diffuse_substep,
     emit_diffuse_particles,
 )
 from .kernels import (
@@ -455,7 +454,6 @@ class FluidSolver:
     def _diffuse_pass(self, state_out, dt: float) -> None:
         """Let the fluid emit diffuse particles, then advect them all (new ones leave shapes at once)."""
         s, m, b = self.search, self.model, self.diffuse
-        wp.launch(count_diffuse_substep, dim=1, outputs=[b.counters], device=self.device)
         body_q = state_out.body_q if state_out.body_q is not None else self._no_bodies
         # the step's result in slot order (the viscosity pass gathers the same, before it acts)
         wp.launch(
