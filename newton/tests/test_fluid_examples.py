@@ -18,6 +18,7 @@ import newton.examples
 # example name -> (command-line arguments, frames)
 EXAMPLES = {
     "fluid_xpbd_dam_break": (["--particle-count", "3000"], 90),
+    "fluid_xpbd_foam": (["--particle-count", "4000"], 120),
 }
 
 

@@ -300,4 +300,3 @@ def advect_diffuse_particles(
     buffers.velocity[k] = v
     buffers.lifetime[k] = life
     buffers.kind[k] = kind
-
