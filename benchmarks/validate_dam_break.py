@@ -1,0 +1,171 @@
+# SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
+# SPDX-License-Identifier: Apache-2.0
+
+"""Dam-break surge front against the experiment of Koshizuka & Oka (1996).
+
+A water column of width L and height 2L (L = 0.146 m) stands against the -x wall of a tank on a
+dry, frictionless floor; the tank is ``--depth`` particle layers deep in y between frictionless
+walls (a slice of the 2D experiment). After release, the surge front (the 99.9th percentile of x
+over the particles within two spacings of the floor, measured from the wall behind the column)
+is compared with the measured front at each data point of
+``benchmarks/data/dam_break_koshizuka_oka_1996.json`` (the measured data, with its source) (T = t sqrt(2g/L), Z = front / L), at each
+resolution of ``--resolutions`` (particles across L). Prints a table and writes JSON: the
+relative error at every point, and the machine, device, particle count, substeps and iterations.
+
+Usage::
+
+    python benchmarks/validate_dam_break.py [--resolutions 20 30 40] [--json out.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import platform
+import sys
+from pathlib import Path
+
+import numpy as np
+import warp as wp
+
+import newton
+
+DATA = Path(__file__).resolve().parent / "data" / "dam_break_koshizuka_oka_1996.json"
+L = 0.146  # column width [m] (Koshizuka & Oka's, after Martin & Moyce)
+G = 9.81
+
+
+def run(per_l: int, args, points: np.ndarray, device) -> dict:
+    d = L / per_l
+    depth_layers = args.depth
+    builder = newton.ModelBuilder()
+    builder.add_particle_grid(
+        pos=wp.vec3(0.5 * d, 0.5 * d, 0.5 * d),
+        rot=wp.quat_identity(),
+        vel=wp.vec3(0.0),
+        dim_x=per_l,
+        dim_y=depth_layers,
+        dim_z=2 * per_l,
+        cell_x=d,
+        cell_y=d,
+        cell_z=d,
+        mass=1000.0 * d**3,
+        jitter=0.0,
+        radius_mean=0.5 * d,
+        flags=int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID),
+    )
+    cfg = newton.ModelBuilder.ShapeConfig(mu=0.0)
+    builder.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(mu=args.floor_friction))
+    t = 0.05
+    width = depth_layers * d
+    length = 5.0 * L
+    height = 2.5 * L
+    for center, half in (
+        ((-t, 0.5 * width, 0.5 * height), (t, 0.5 * width + 2 * t, 0.5 * height)),
+        ((length + t, 0.5 * width, 0.5 * height), (t, 0.5 * width + 2 * t, 0.5 * height)),
+        ((0.5 * length, -t, 0.5 * height), (0.5 * length, t, 0.5 * height)),
+        ((0.5 * length, width + t, 0.5 * height), (0.5 * length, t, 0.5 * height)),
+    ):
+        builder.add_shape_box(
+            -1, xform=wp.transform(wp.vec3(*center), wp.quat_identity()), hx=half[0], hy=half[1], hz=half[2], cfg=cfg
+        )
+    model = builder.finalize(device=device)
+    model.soft_contact_mu = args.floor_friction
+    dt = 1.0 / (60.0 * args.substeps)
+    if args.speed_clamp > 0.0:
+        model.particle_max_velocity = args.speed_clamp * 0.5 * d / dt
+    solver = newton.solvers.SolverXPBD(
+        model,
+        iterations=args.iterations,
+        fluid_rest_distance=d,
+        fluid_cohesion=args.cohesion,
+        fluid_viscosity=args.viscosity,
+    )
+    s0, s1 = model.state(), model.state()
+    pipeline = newton.CollisionPipeline(model, soft_contact_max=model.particle_count, soft_contact_gap=0.5 * d)
+    contacts = pipeline.contacts()
+    t_scale = math.sqrt(L / (2.0 * G))  # t = T * t_scale
+    times = points[:, 0] * t_scale
+    fronts = []
+    step, sim_t = 0, 0.0
+    for target in times:
+        while sim_t < target - 0.5 * dt:
+            s0.clear_forces()
+            pipeline.collide(s0, contacts)
+            solver.step(s0, s1, None, contacts, dt)
+            s0, s1 = s1, s0
+            sim_t += dt
+            step += 1
+        q = s0.particle_q.numpy()
+        low = q[q[:, 2] < 2.0 * d]
+        front = (np.percentile(low[:, 0], 99.9) + 0.5 * d) if len(low) else 0.0
+        fronts.append(front / L)
+    fronts = np.asarray(fronts)
+    error = (fronts - points[:, 1]) / points[:, 1]
+    return {
+        "particles_per_L": per_l,
+        "spacing_m": d,
+        "particles": int(model.particle_count),
+        "T": points[:, 0].tolist(),
+        "Z_experiment": points[:, 1].tolist(),
+        "Z_simulated": fronts.tolist(),
+        "relative_error": error.tolist(),
+        "max_abs_relative_error": float(np.abs(error).max()),
+        "mean_abs_relative_error": float(np.abs(error).mean()),
+    }
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--resolutions", type=int, nargs="+", default=[20, 30, 40], help="particles across L")
+    parser.add_argument("--depth", type=int, default=6, help="particle layers in y")
+    parser.add_argument("--substeps", type=int, default=8)
+    parser.add_argument("--iterations", type=int, default=2)
+    parser.add_argument("--cohesion", type=float, default=0.0)
+    parser.add_argument("--viscosity", type=float, default=0.0)
+    parser.add_argument("--speed-clamp", type=float, default=0.0, help="max displacement per substep [radii]; 0: off")
+    parser.add_argument("--floor-friction", type=float, default=0.0, help="Coulomb friction of the floor (walls: 0)")
+    parser.add_argument("--device", default=None)
+    parser.add_argument("--data", default=str(DATA))
+    parser.add_argument("--json", default=None)
+    args = parser.parse_args(argv)
+
+    data = json.loads(Path(args.data).read_text())
+    points = np.asarray(data["points"], dtype=np.float64)
+    wp.init()
+    device = wp.get_device(args.device)
+    runs = [run(n, args, points, device) for n in args.resolutions]
+    print(f"{'T':>6} {'Z exp':>7} " + " ".join(f"{'Z @' + str(r['particles_per_L']):>9} {'err':>7}" for r in runs))
+    for k, (t_value, z_exp) in enumerate(points):
+        cells = " ".join(f"{r['Z_simulated'][k]:9.3f} {100 * r['relative_error'][k]:6.1f}%" for r in runs)
+        print(f"{t_value:6.3f} {z_exp:7.3f} {cells}")
+    for r in runs:
+        print(
+            f"{r['particles_per_L']:>3} per L ({r['particles']} particles): max |error| "
+            f"{100 * r['max_abs_relative_error']:.1f} %, mean {100 * r['mean_abs_relative_error']:.1f} %"
+        )
+    result = {
+        "benchmark": "validate_dam_break",
+        "reference": data["source"],
+        "machine": platform.node(),
+        "device": device.name if device.is_cuda else "cpu",
+        "warp": wp.config.version,
+        "newton": newton.__version__,
+        "L_m": L,
+        "depth_layers": args.depth,
+        "substeps": args.substeps,
+        "iterations": args.iterations,
+        "cohesion": args.cohesion,
+        "viscosity": args.viscosity,
+        "speed_clamp_radii_per_substep": args.speed_clamp,
+        "floor_friction": args.floor_friction,
+        "runs": runs,
+    }
+    if args.json:
+        Path(args.json).write_text(json.dumps(result, indent=2))
+    return result
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
