@@ -57,6 +57,43 @@ def test_readme_listings_run(test, device):
     test.assertEqual(namespace["density"].shape, (1000,))
 
 
+def test_capture_writes_video_and_sidecar(test, device):
+    import json  # noqa: PLC0415
+    import tempfile  # noqa: PLC0415
+
+    import imageio.v3 as iio  # noqa: PLC0415
+
+    from newton.examples.fluid import capture  # noqa: PLC0415
+    from newton.examples.fluid.example_fluid_xpbd_dam_break import Example  # noqa: PLC0415
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path = str(Path(tmp) / "dam.mp4")
+        args = Example.create_parser().parse_args(
+            ["--particle-count", "2000", "--num-frames", "8", "--capture", path, "--capture-size", "320", "180"]
+        )
+        with wp.ScopedDevice(device):
+            sidecar = capture.capture(Example, args, "fluid_xpbd_dam_break")
+        frames = iio.imread(path)
+        test.assertEqual(frames.shape, (4, 180, 320, 3))  # 8 frames at 60 Hz -> 4 at 30 fps
+        # the fluid is in the picture: the frames differ from one another as it falls
+        test.assertGreater(abs(frames[-1].astype(float) - frames[0].astype(float)).mean(), 0.05)
+        on_disk = json.loads(Path(path + ".json").read_text())
+        test.assertEqual(on_disk, json.loads(json.dumps(sidecar)))
+        for key, value in (
+            ("scene", "fluid_xpbd_dam_break"),
+            ("frames_simulated", 8),
+            ("frames_written", 4),
+            ("output_fps", 30.0),
+            ("substeps", 8),
+            ("iterations", 2),
+            ("resolution", [320, 180]),
+        ):
+            test.assertEqual(on_disk[key], value, key)
+        test.assertGreater(on_disk["particles"], 1500)
+        for key in ("wall_time_s", "simulated_time_s", "device", "newton", "warp"):
+            test.assertIn(key, on_disk)
+
+
 class TestFluidExamples(unittest.TestCase):
     pass
 
@@ -69,6 +106,13 @@ for _example in EXAMPLES:
         lambda test, device, n=_example: run_example(test, device, n),
         devices=devices,
     )
+add_function_test(
+    TestFluidExamples,
+    "test_capture_writes_video_and_sidecar",
+    test_capture_writes_video_and_sidecar,
+    devices=[wp.get_device("cpu")],
+    check_output=False,
+)
 add_function_test(
     TestFluidExamples, "test_readme_listings_run", test_readme_listings_run, devices=devices, check_output=False
 )

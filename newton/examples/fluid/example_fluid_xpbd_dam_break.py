@@ -10,6 +10,7 @@ Success criteria:
 
 Runs:
 - `python -m newton.examples fluid_xpbd_dam_break`
+- `python -m newton.examples fluid_xpbd_dam_break --capture dam_break.mp4 --num-frames 600` (headless video)
 - `python -m newton.examples fluid_xpbd_dam_break --particle-count 20000`
 """
 
@@ -20,6 +21,8 @@ import warp as wp
 
 import newton
 import newton.examples
+from newton.examples.fluid.capture import add_capture_arguments
+from newton.examples.fluid.capture import main as capture_or_run
 
 # the benchmark column of the Newton-fluid performance target: 34 x 49 x 60 particles
 BASE_DIMS = (34, 49, 60)
@@ -204,11 +207,10 @@ class Example:
     @staticmethod
     def create_parser():
         parser = newton.examples.create_parser()
+        add_capture_arguments(parser)
         parser.add_argument("--particle-count", type=int, default=100_000, help="Approximate fluid particle count.")
         return parser
 
 
 if __name__ == "__main__":
-    parser = Example.create_parser()
-    viewer, args = newton.examples.init(parser)
-    newton.examples.run(Example(viewer, args), args)
+    capture_or_run(Example, "fluid_xpbd_dam_break")

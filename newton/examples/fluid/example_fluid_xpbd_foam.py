@@ -13,6 +13,7 @@ Success criteria:
 
 Runs:
 - `python -m newton.examples fluid_xpbd_foam`
+- `python -m newton.examples fluid_xpbd_foam --capture foam.mp4 --num-frames 600` (headless video)
 - `python -m newton.examples fluid_xpbd_foam --particle-count 20000`
 """
 
@@ -22,6 +23,8 @@ import warp as wp
 import newton
 import newton.examples
 from newton._src.solvers.xpbd.fluid.diffuse import DIFFUSE_BUBBLE, DIFFUSE_DEAD, DIFFUSE_FOAM, DIFFUSE_SPRAY
+from newton.examples.fluid.capture import add_capture_arguments
+from newton.examples.fluid.capture import main as capture_or_run
 
 BASIN_HALF = 0.35  # inner half extent of the square basin [m]
 WALL_HEIGHT = 0.6  # [m]
@@ -184,11 +187,10 @@ class Example:
     @staticmethod
     def create_parser():
         parser = newton.examples.create_parser()
+        add_capture_arguments(parser)
         parser.add_argument("--particle-count", type=int, default=60_000, help="Approximate fluid particle count.")
         return parser
 
 
 if __name__ == "__main__":
-    parser = Example.create_parser()
-    viewer, args = newton.examples.init(parser)
-    newton.examples.run(Example(viewer, args), args)
+    capture_or_run(Example, "fluid_xpbd_foam")
