@@ -19,6 +19,7 @@ import newton.examples
 EXAMPLES = {
     "fluid_xpbd_dam_break": (["--particle-count", "3000"], 90),
     "fluid_xpbd_foam": (["--particle-count", "4000"], 120),
+    "fluid_xpbd_multiworld": (["--world-count", "8", "--particle-count", "3000"], 60),
 }
 
 
