@@ -42,6 +42,7 @@ for what in "$@"; do
     tests)
       python3 -m pytest -q -k cuda newton/tests/test_solver_xpbd_fluid.py newton/tests/test_fluid_examples.py \
         newton/tests/test_fluid_extension.py newton/tests/test_fluid_diffuse.py newton/tests/test_fluid_render_particles.py \
+        newton/tests/test_fluid_validation.py \
         2>&1 | tail -25 ;;
   esac
 done
