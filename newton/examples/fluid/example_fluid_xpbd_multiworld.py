@@ -179,11 +179,15 @@ class Example:
             mean_height.append(qw[:, 2].mean())
             twin = w + 4
             if twin < self.world_count:
-                # the same setup in another world: the same result (bit for bit on the CPU; CUDA's
-                # atomics reorder sums, so there the flows only agree closely)
-                exact = not wp.get_device().is_cuda
-                diff = np.abs(q[world == twin] - qw).max()
-                assert diff == 0.0 if exact else diff < 2.0 * d, (w, twin, diff)
+                # the same setup in another world: the same result, bit for bit on the CPU; CUDA's
+                # atomics reorder sums and a splash amplifies the difference, so there the twins
+                # agree in their centroid (a world that saw another would be pushed far off)
+                if wp.get_device().is_cuda:
+                    diff = np.linalg.norm(q[world == twin].mean(axis=0) - qw.mean(axis=0))
+                    assert diff < 0.5 * d, (w, twin, diff)
+                else:
+                    diff = np.abs(q[world == twin] - qw).max()
+                    assert diff == 0.0, (w, twin, diff)
         if self.world_count >= 4:
             # each world levels out its own water: a tall column's world stays deeper than a short
             # one's (2.5x once settled), which a shared pool would even out
