@@ -23,6 +23,7 @@ import newton
 import newton.examples
 from newton.examples.fluid.capture import add_capture_arguments
 from newton.examples.fluid.capture import main as capture_or_run
+from newton.examples.fluid.common import FluidExample, add_tank
 
 # the benchmark column of the Newton-fluid performance target: 34 x 49 x 60 particles
 BASE_DIMS = (34, 49, 60)
@@ -68,86 +69,44 @@ def add_dam_break(builder: newton.ModelBuilder, particle_count: int, obstacles: 
         flags=int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID),
     )
     # water slips along the tank: no Coulomb friction between particles and these shapes
-    cfg = newton.ModelBuilder.ShapeConfig(mu=0.0)
-    builder.add_ground_plane(cfg=cfg)
-    t, hz = WALL_THICKNESS, 0.5 * WALL_HEIGHT
-    walls = [
-        ((-TANK_HALF_LENGTH - t, 0.0, hz), (t, half_width + 2.0 * t, hz)),
-        ((TANK_HALF_LENGTH + t, 0.0, hz), (t, half_width + 2.0 * t, hz)),
-        ((0.0, -half_width - t, hz), (TANK_HALF_LENGTH, t, hz)),
-        ((0.0, half_width + t, hz), (TANK_HALF_LENGTH, t, hz)),
-    ]
+    builder.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(mu=0.0))
+    add_tank(builder, TANK_HALF_LENGTH, half_width, WALL_HEIGHT, WALL_THICKNESS)
     boxes = []
     if obstacles:
         boxes = [
             ((0.1, -0.45 * half_width, 0.15), (0.06, 0.25 * half_width, 0.15)),
             ((0.6, 0.4 * half_width, 0.2), (0.06, 0.25 * half_width, 0.2)),
         ]
-    # the front (-y) wall collides but is not drawn, like the glass of a real tank
-    glass = newton.ModelBuilder.ShapeConfig(mu=0.0, is_visible=False)
-    for k, (center, half) in enumerate(walls + boxes):
+    for center, half in boxes:
         xform = wp.transform(wp.vec3(*center), wp.quat_identity())
-        builder.add_shape_box(-1, xform=xform, hx=half[0], hy=half[1], hz=half[2], cfg=glass if k == 2 else cfg)
+        builder.add_shape_box(
+            -1, xform=xform, hx=half[0], hy=half[1], hz=half[2], cfg=newton.ModelBuilder.ShapeConfig(mu=0.0)
+        )
     return {"spacing": spacing, "dims": dims, "half_width": half_width, "obstacles": boxes}
 
 
-class Example:
+class Example(FluidExample):
     def __init__(self, viewer, args):
-        self.viewer = viewer
-        self.fps = 60
-        self.frame_dt = 1.0 / self.fps
-        self.sim_substeps = 8
-        self.sim_dt = self.frame_dt / self.sim_substeps
-        self.sim_time = 0.0
-
+        super().__init__(viewer)
         builder = newton.ModelBuilder()
         self.scene = add_dam_break(builder, args.particle_count, obstacles=True)
         self.model = builder.finalize()
         self.model.soft_contact_mu = 0.0
-        spacing = self.scene["spacing"]
+        self.spacing = self.scene["spacing"]
         # a particle moves at most half its radius per substep
-        self.model.particle_max_velocity = 0.25 * spacing / self.sim_dt
+        self.model.particle_max_velocity = 0.25 * self.spacing / self.sim_dt
 
         self.solver = newton.solvers.SolverXPBD(
             self.model,
             iterations=2,
-            fluid_rest_distance=spacing,
+            fluid_rest_distance=self.spacing,
             fluid_cohesion=0.5,
             fluid_viscosity=0.05,
             # spray and foam where the wave breaks, for the picture only
             max_diffuse_particles=args.particle_count // 4,
         )
-        self.state_0 = self.model.state()
-        self.state_1 = self.model.state()
-        # contacts reach one diameter from a surface, so particles near walls see the walls' density
-        self.collision = newton.CollisionPipeline(
-            self.model, soft_contact_max=self.model.particle_count, soft_contact_gap=0.5 * spacing
-        )
-        self.contacts = self.collision.contacts()
-        self.viewer.set_model(self.model)
+        self.setup_simulation()
         self.viewer.set_camera(wp.vec3(0.0, -2.6, 1.4), pitch=-22.0, yaw=90.0)
-        self.capture()
-
-    def capture(self):
-        self.graph = None
-        if wp.get_device().is_cuda:
-            with wp.ScopedCapture() as capture:
-                self.simulate()
-            self.graph = capture.graph
-
-    def simulate(self):
-        for _ in range(self.sim_substeps):
-            self.state_0.clear_forces()
-            self.collision.collide(self.state_0, self.contacts)
-            self.solver.step(self.state_0, self.state_1, None, self.contacts, self.sim_dt)
-            self.state_0, self.state_1 = self.state_1, self.state_0
-
-    def step(self):
-        if self.graph:
-            wp.capture_launch(self.graph)
-        else:
-            self.simulate()
-        self.sim_time += self.frame_dt
 
     def gui(self, ui):
         # these parameters live on the device, so a captured graph picks up the new values
@@ -161,25 +120,8 @@ class Example:
         self.solver.update_render_particles(self.state_0)
         self.viewer.begin_frame(self.sim_time)
         self.viewer.log_state(self.state_0)
-        self.viewer.log_fluid(
-            "/fluid",
-            self.solver.render_positions,
-            radii=self.model.particle_radius,
-            radius_scale=1.3,
-            color=(0.2, 0.45, 0.9, 0.3),
-            absorption=(4.0, 1.2, 0.5),
-            anisotropy=self.solver.render_anisotropy,
-            anisotropy_secondary=self.solver.render_anisotropy_secondary,
-            anisotropy_tertiary=self.solver.render_anisotropy_tertiary,
-        )
-        self.viewer.log_fluid_diffuse(
-            "/foam",
-            self.solver.diffuse_positions,
-            self.solver.diffuse_velocities,
-            self.solver.diffuse_lifetimes,
-            self.solver.diffuse_kinds,
-            radius=0.25 * self.scene["spacing"],
-        )
+        self.log_water("/fluid")
+        self.log_foam(radius=0.25 * self.spacing)
         self.viewer.end_frame()
 
     def test_final(self):

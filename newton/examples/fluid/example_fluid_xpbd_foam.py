@@ -25,6 +25,7 @@ import newton.examples
 from newton._src.solvers.xpbd.fluid.diffuse import DIFFUSE_BUBBLE, DIFFUSE_DEAD, DIFFUSE_FOAM, DIFFUSE_SPRAY
 from newton.examples.fluid.capture import add_capture_arguments
 from newton.examples.fluid.capture import main as capture_or_run
+from newton.examples.fluid.common import FluidExample, add_tank
 
 BASIN_HALF = 0.35  # inner half extent of the square basin [m]
 WALL_HEIGHT = 0.6  # [m]
@@ -35,14 +36,9 @@ COLUMN_HEIGHT = 0.45  # [m]
 DROP = 0.3  # gap between the pool's surface and the column's bottom [m]
 
 
-class Example:
+class Example(FluidExample):
     def __init__(self, viewer, args):
-        self.viewer = viewer
-        self.fps = 60
-        self.frame_dt = 1.0 / self.fps
-        self.sim_substeps = 8
-        self.sim_dt = self.frame_dt / self.sim_substeps
-        self.sim_time = 0.0
+        super().__init__(viewer)
 
         # spacing from the particle budget: the pool and the column share it by volume
         volume = (2 * BASIN_HALF) ** 2 * POOL_DEPTH + (2 * COLUMN_HALF) ** 2 * COLUMN_HEIGHT
@@ -74,19 +70,8 @@ class Example:
                 radius_mean=0.5 * d,
                 flags=flags,
             )
-        cfg = newton.ModelBuilder.ShapeConfig(mu=0.0)
-        glass = newton.ModelBuilder.ShapeConfig(mu=0.0, is_visible=False)
-        builder.add_ground_plane(cfg=cfg)
-        t, h, hz = WALL_THICKNESS, BASIN_HALF, 0.5 * WALL_HEIGHT
-        walls = (
-            ((-h - t, 0.0, hz), (t, h + 2 * t, hz)),
-            ((h + t, 0.0, hz), (t, h + 2 * t, hz)),
-            ((0.0, -h - t, hz), (h, t, hz)),  # the front, toward the camera: not drawn
-            ((0.0, h + t, hz), (h, t, hz)),
-        )
-        for k, (center, half) in enumerate(walls):
-            xform = wp.transform(wp.vec3(*center), wp.quat_identity())
-            builder.add_shape_box(-1, xform=xform, hx=half[0], hy=half[1], hz=half[2], cfg=glass if k == 2 else cfg)
+        builder.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(mu=0.0))
+        add_tank(builder, BASIN_HALF, BASIN_HALF, WALL_HEIGHT, WALL_THICKNESS)
         self.model = builder.finalize()
         self.model.soft_contact_mu = 0.0
         self.model.particle_max_velocity = 0.25 * d / self.sim_dt
@@ -100,39 +85,14 @@ class Example:
             fluid_viscosity=0.02,
             max_diffuse_particles=args.particle_count // 2,
         )
-        self.state_0 = self.model.state()
-        self.state_1 = self.model.state()
-        self.collision = newton.CollisionPipeline(
-            self.model, soft_contact_max=self.model.particle_count, soft_contact_gap=0.5 * d
-        )
-        self.contacts = self.collision.contacts()
         # kinds of diffuse particle seen so far, and the most alive at once
         self.kinds_seen = set()
         self.max_alive = 0
-        self.viewer.set_model(self.model)
+        self.setup_simulation()
         self.viewer.set_camera(wp.vec3(0.0, -1.5, 0.75), pitch=-24.0, yaw=90.0)
-        self.capture()
-
-    def capture(self):
-        self.graph = None
-        if wp.get_device().is_cuda:
-            with wp.ScopedCapture() as capture:
-                self.simulate()
-            self.graph = capture.graph
-
-    def simulate(self):
-        for _ in range(self.sim_substeps):
-            self.state_0.clear_forces()
-            self.collision.collide(self.state_0, self.contacts)
-            self.solver.step(self.state_0, self.state_1, None, self.contacts, self.sim_dt)
-            self.state_0, self.state_1 = self.state_1, self.state_0
 
     def step(self):
-        if self.graph:
-            wp.capture_launch(self.graph)
-        else:
-            self.simulate()
-        self.sim_time += self.frame_dt
+        super().step()
         if round(self.sim_time * self.fps) % 10 == 0:
             # an occasional look at the kinds, for test_final (a host read; not every frame)
             kinds = self.solver.diffuse_kinds.numpy()
@@ -143,26 +103,8 @@ class Example:
         self.solver.update_render_particles(self.state_0)
         self.viewer.begin_frame(self.sim_time)
         self.viewer.log_state(self.state_0)
-        self.viewer.log_fluid(
-            "/water",
-            self.solver.render_positions,
-            radii=self.model.particle_radius,
-            radius_scale=1.3,
-            color=(0.2, 0.45, 0.9, 0.2),
-            absorption=(3.0, 1.0, 0.4),
-            anisotropy=self.solver.render_anisotropy,
-            anisotropy_secondary=self.solver.render_anisotropy_secondary,
-            anisotropy_tertiary=self.solver.render_anisotropy_tertiary,
-        )
-        self.viewer.log_fluid_diffuse(
-            "/foam",
-            self.solver.diffuse_positions,
-            self.solver.diffuse_velocities,
-            self.solver.diffuse_lifetimes,
-            self.solver.diffuse_kinds,
-            radius=0.6 * self.spacing,
-            color=(1.0, 1.0, 1.0, 0.9),
-        )
+        self.log_water(color=(0.2, 0.45, 0.9, 0.2), absorption=(3.0, 1.0, 0.4))
+        self.log_foam(radius=0.6 * self.spacing, color=(1.0, 1.0, 1.0, 0.9))
         self.viewer.end_frame()
 
     def test_final(self):

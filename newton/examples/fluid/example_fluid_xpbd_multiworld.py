@@ -25,6 +25,7 @@ import newton
 import newton.examples
 from newton.examples.fluid.capture import add_capture_arguments
 from newton.examples.fluid.capture import main as capture_or_run
+from newton.examples.fluid.common import FluidExample, add_tank
 
 TANK_HALF = 0.15  # inner half extent in x and y [m]
 WALL_HEIGHT = 0.3  # [m]
@@ -49,14 +50,9 @@ def offset_by_world(
     shown[i] = positions[i] + offset
 
 
-class Example:
+class Example(FluidExample):
     def __init__(self, viewer, args):
-        self.viewer = viewer
-        self.fps = 60
-        self.frame_dt = 1.0 / self.fps
-        self.sim_substeps = 8
-        self.sim_dt = self.frame_dt / self.sim_substeps
-        self.sim_time = 0.0
+        super().__init__(viewer)
         self.world_count = args.world_count
 
         # spacing from the particle budget over all worlds
@@ -65,16 +61,9 @@ class Example:
         d = (volume / args.particle_count) ** (1.0 / 3.0)
         self.spacing = d
         builder = newton.ModelBuilder()
-        cfg = newton.ModelBuilder.ShapeConfig(mu=0.0)
-        builder.add_ground_plane(cfg=cfg)
+        builder.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(mu=0.0))
         flags = int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID)
-        t, h, hz = WALL_THICKNESS, TANK_HALF, 0.5 * WALL_HEIGHT
-        walls = (
-            ((-h - t, 0.0, hz), (t, h + 2 * t, hz)),
-            ((h + t, 0.0, hz), (t, h + 2 * t, hz)),
-            ((0.0, -h - t, hz), (h, t, hz)),
-            ((0.0, h + t, hz), (h, t, hz)),
-        )
+        h = TANK_HALF
         for w in range(self.world_count):
             builder.begin_world()
             height = COLUMN_HEIGHTS[w % 4]
@@ -93,11 +82,7 @@ class Example:
                 radius_mean=0.5 * d,
                 flags=flags,
             )
-            for k, (center, half) in enumerate(walls):
-                xform = wp.transform(wp.vec3(*center), wp.quat_identity())
-                # the front wall collides but is not drawn, so the camera sees in
-                shape_cfg = newton.ModelBuilder.ShapeConfig(mu=0.0, is_visible=k != 2)
-                builder.add_shape_box(-1, xform=xform, hx=half[0], hy=half[1], hz=half[2], cfg=shape_cfg)
+            add_tank(builder, TANK_HALF, TANK_HALF, WALL_HEIGHT, WALL_THICKNESS)
             builder.end_world()
         self.model = builder.finalize()
         self.model.soft_contact_mu = 0.0
@@ -106,38 +91,10 @@ class Example:
         self.solver = newton.solvers.SolverXPBD(
             self.model, iterations=2, fluid_rest_distance=d, fluid_cohesion=0.3, fluid_viscosity=0.02
         )
-        self.state_0 = self.model.state()
-        self.state_1 = self.model.state()
-        self.collision = newton.CollisionPipeline(
-            self.model, soft_contact_max=self.model.particle_count, soft_contact_gap=0.5 * d
-        )
-        self.contacts = self.collision.contacts()
+        self.setup_simulation()
         self.shown = wp.empty_like(self.state_0.particle_q)
-        self.viewer.set_model(self.model)
         self.viewer.set_world_offsets((2 * TANK_HALF + 0.15, 2 * TANK_HALF + 0.15, 0.0))
         self.viewer.set_camera(wp.vec3(0.0, -1.6, 2.2), pitch=-52.0, yaw=90.0)
-        self.capture()
-
-    def capture(self):
-        self.graph = None
-        if wp.get_device().is_cuda:
-            with wp.ScopedCapture() as capture:
-                self.simulate()
-            self.graph = capture.graph
-
-    def simulate(self):
-        for _ in range(self.sim_substeps):
-            self.state_0.clear_forces()
-            self.collision.collide(self.state_0, self.contacts)
-            self.solver.step(self.state_0, self.state_1, None, self.contacts, self.sim_dt)
-            self.state_0, self.state_1 = self.state_1, self.state_0
-
-    def step(self):
-        if self.graph:
-            wp.capture_launch(self.graph)
-        else:
-            self.simulate()
-        self.sim_time += self.frame_dt
 
     def render(self):
         self.solver.update_render_particles(self.state_0)
@@ -150,17 +107,7 @@ class Example:
         )
         self.viewer.begin_frame(self.sim_time)
         self.viewer.log_state(self.state_0)
-        self.viewer.log_fluid(
-            "/water",
-            self.shown,
-            radii=self.model.particle_radius,
-            radius_scale=1.3,
-            color=(0.2, 0.45, 0.9, 0.3),
-            absorption=(4.0, 1.2, 0.5),
-            anisotropy=self.solver.render_anisotropy,
-            anisotropy_secondary=self.solver.render_anisotropy_secondary,
-            anisotropy_tertiary=self.solver.render_anisotropy_tertiary,
-        )
+        self.log_water(positions=self.shown)
         self.viewer.end_frame()
 
     def test_final(self):

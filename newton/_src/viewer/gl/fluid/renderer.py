@@ -172,18 +172,9 @@ class FluidRendererGL:
                 )
             batch = FluidBatchGL(material=material)
             self.batches[name] = batch
-        batch.material = material
-        batch.hidden = hidden
-        n = len(positions)
-        batch.count = n
-        if n == 0:
+        if not self._prepare(gl, batch, material, hidden, positions):
             return
-        self._ensure_common(gl)
-        if n > batch.capacity:
-            self._allocate_batch(gl, batch, max(n, 2 * batch.capacity, 256))
-        device = positions.device
-        if batch.packed is None or batch.packed.device != device:
-            batch.packed = wp.empty((batch.capacity, batch.vec4_per_instance), dtype=wp.vec4, device=device)
+        n, device = batch.count, positions.device
         scalar = isinstance(radii, float)
         if scalar:
             batch.mean_radius = radii
@@ -216,18 +207,9 @@ class FluidRendererGL:
         if batch is None:
             batch = FluidBatchGL(material=material, vec4_per_instance=2)
             self.diffuse_batches[name] = batch
-        batch.material = material
-        batch.hidden = hidden
-        n = len(positions)
-        batch.count = n
-        if n == 0:
+        if not self._prepare(gl, batch, material, hidden, positions):
             return
-        self._ensure_common(gl)
-        if n > batch.capacity:
-            self._allocate_batch(gl, batch, max(n, 2 * batch.capacity, 256))
-        device = positions.device
-        if batch.packed is None or batch.packed.device != device:
-            batch.packed = wp.empty((batch.capacity, 2), dtype=wp.vec4, device=device)
+        n, device = batch.count, positions.device
         none_v = wp.empty(0, dtype=wp.vec3, device=device)
         none_f = wp.empty(0, dtype=float, device=device)
         none_i = wp.empty(0, dtype=wp.int32, device=device)
@@ -246,21 +228,32 @@ class FluidRendererGL:
         )
         self._upload(gl, batch, n)
 
+    def _prepare(self, gl, batch, material, hidden, positions) -> bool:
+        """Update a batch's material and count, grow its buffers; False when there is nothing to draw."""
+        batch.material = material
+        batch.hidden = hidden
+        n = len(positions)
+        batch.count = n
+        if n == 0:
+            return False
+        self._ensure_common(gl)
+        if n > batch.capacity:
+            self._allocate_batch(gl, batch, max(n, 2 * batch.capacity, 256))
+        if batch.packed is None or batch.packed.device != positions.device:
+            batch.packed = wp.empty((batch.capacity, batch.vec4_per_instance), dtype=wp.vec4, device=positions.device)
+        return True
+
     def remove_diffuse_batch(self, name):
-        batch = self.diffuse_batches.pop(name, None)
-        if batch is not None and batch.vbo:
-            gl = self.renderer.gl
-            self.renderer._make_current()
-            batch.registered = None
-            gl.glDeleteBuffers(1, ctypes.byref(gl.GLuint(batch.vbo)))
-            gl.glDeleteVertexArrays(1, ctypes.byref(gl.GLuint(batch.vao)))
+        self._release_batch(self.diffuse_batches.pop(name, None))
 
     def hide_batch(self, name):
         if name in self.batches:
             self.batches[name].hidden = True
 
     def remove_batch(self, name):
-        batch = self.batches.pop(name, None)
+        self._release_batch(self.batches.pop(name, None))
+
+    def _release_batch(self, batch):
         if batch is not None and batch.vbo:
             gl = self.renderer.gl
             self.renderer._make_current()
