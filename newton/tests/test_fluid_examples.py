@@ -20,6 +20,7 @@ EXAMPLES = {
     "fluid_xpbd_dam_break": (["--particle-count", "3000"], 90),
     "fluid_xpbd_foam": (["--particle-count", "4000"], 120),
     "fluid_xpbd_multiworld": (["--world-count", "8", "--particle-count", "3000"], 60),
+    "fluid_xpbd_interactive_tank": (["--particle-count", "3000"], 100),
 }
 
 

@@ -68,6 +68,8 @@ class FluidExample:
     def simulate(self):
         for _ in range(self.sim_substeps):
             self.state_0.clear_forces()
+            # mouse picking and wind of the GL viewer
+            self.viewer.apply_forces(self.state_0)
             self.collision.collide(self.state_0, self.contacts)
             self.solver.step(self.state_0, self.state_1, None, self.contacts, self.sim_dt)
             self.state_0, self.state_1 = self.state_1, self.state_0
