@@ -18,6 +18,8 @@ import math
 import numpy as np
 import warp as wp
 
+from .renderer import DiffuseMaterial, FluidMaterial
+
 SUPPORTED_NEWTON = "1.8.0"
 
 # upstream names the extension relies on: class attributes checked at activation, instance
@@ -161,13 +163,33 @@ def log_fluid(
         ValueError: An argument is out of its range (the message names it, its value and the range).
     """
     if positions is None:
-        self.log_points(name, None, hidden=True)
+        self._fluid_remove(name)
         return
-    _check_material(
+    rgba = _check_material(
         radius_scale, color, absorption, ior, reflectance, specular_intensity, specular_power, blur_radius_world
     )
-    _check_axes(positions, anisotropy, anisotropy_secondary, anisotropy_tertiary)
-    _log_fluid_points(self, name, positions, radii, radius_scale, color, hidden)
+    axes = _check_axes(positions, anisotropy, anisotropy_secondary, anisotropy_tertiary)
+    material = FluidMaterial(
+        color=rgba,
+        absorption=None if absorption is None else tuple(float(a) for a in absorption),
+        ior=float(ior),
+        reflectance=float(reflectance),
+        specular_intensity=float(specular_intensity),
+        specular_power=float(specular_power),
+        blur_radius_world=None if blur_radius_world is None else float(blur_radius_world),
+        radius_scale=float(radius_scale),
+    )
+    self._fluid_draw(name, positions, radii, material, axes, hidden)
+
+
+def _fluid_remove(self, name):
+    """Every viewer but ViewerGL: hide the points of a removed batch."""
+    self.log_points(name, None, hidden=True)
+
+
+def _fluid_draw(self, name, positions, radii, material, axes, hidden):
+    """Every viewer but ViewerGL: the particles as points in the batch colour."""
+    _log_fluid_points(self, name, positions, radii, material.radius_scale, material.color, hidden)
 
 
 def _log_fluid_points(viewer, name, positions, radii, radius_scale, color, hidden):
@@ -183,40 +205,17 @@ def _log_fluid_points(viewer, name, positions, radii, radius_scale, color, hidde
     viewer.log_points(name, positions, radii=radii, colors=colors, hidden=hidden)
 
 
-def log_fluid_gl(
-    self,
-    name: str,
-    positions: wp.array | None,
-    radii: wp.array | float | None = None,
-    *,
-    radius_scale: float = 1.8,
-    color: tuple = (0.2, 0.45, 0.9, 1.0),
-    absorption: tuple | None = None,
-    ior: float = 1.333,
-    reflectance: float = 0.02,
-    specular_intensity: float = 0.6,
-    specular_power: float = 200.0,
-    blur_radius_world: float | None = None,
-    anisotropy: wp.array | None = None,
-    anisotropy_secondary: wp.array | None = None,
-    anisotropy_tertiary: wp.array | None = None,
-    hidden: bool = False,
-) -> None:
-    from .renderer import FluidMaterial  # noqa: PLC0415
+def _fluid_remove_gl(self, name):
+    fluid_renderer(self).remove_batch(self._qualify(name))
+    self.log_points(name, None, hidden=True)
 
+
+def _fluid_draw_gl(self, name, positions, radii, material, axes, hidden):
     qualified = self._qualify(name)
     fluid = fluid_renderer(self)
-    if positions is None:
-        fluid.remove_batch(qualified)
-        self.log_points(name, None, hidden=True)
-        return
-    rgba = _check_material(
-        radius_scale, color, absorption, ior, reflectance, specular_intensity, specular_power, blur_radius_world
-    )
-    axes = _check_axes(positions, anisotropy, anisotropy_secondary, anisotropy_tertiary)
     if not self.fluid_surface:
         fluid.hide_batch(qualified)
-        _log_fluid_points(self, name, positions, radii, radius_scale, rgba, hidden)
+        _log_fluid_points(self, name, positions, radii, material.radius_scale, material.color, hidden)
         return
     if qualified in self.objects:
         self.objects[qualified].hidden = True
@@ -228,16 +227,6 @@ def log_fluid_gl(
         raise ValueError(
             f"radii={radii!r} is invalid: expected a float, or a float32 array with one radius per position"
         )
-    material = FluidMaterial(
-        color=rgba,
-        absorption=None if absorption is None else tuple(float(a) for a in absorption),
-        ior=float(ior),
-        reflectance=float(reflectance),
-        specular_intensity=float(specular_intensity),
-        specular_power=float(specular_power),
-        blur_radius_world=None if blur_radius_world is None else float(blur_radius_world),
-        radius_scale=float(radius_scale),
-    )
     fluid.set_batch(qualified, positions, radii, material, axes, hidden)
 
 
@@ -316,10 +305,20 @@ def log_fluid_diffuse(
         ValueError: An argument is out of its range (the message names it, its value and the range).
     """
     if positions is None:
-        self.log_points(name, None, hidden=True)
+        self._fluid_remove_diffuse(name)
         return
     rgba = _check_diffuse(positions, velocities, lifetimes, kinds, radius, color, stretch_time, fade_length)
-    _log_diffuse_points(self, name, positions, lifetimes, kinds, radius, rgba, hidden)
+    material = DiffuseMaterial(color=rgba, stretch_time=float(stretch_time), fade_length=float(fade_length))
+    self._fluid_draw_diffuse(name, positions, velocities, lifetimes, kinds, float(radius), material, hidden)
+
+
+def _fluid_remove_diffuse(self, name):
+    self.log_points(name, None, hidden=True)
+
+
+def _fluid_draw_diffuse(self, name, positions, velocities, lifetimes, kinds, radius, material, hidden):
+    """Every viewer but ViewerGL: the live particles as points."""
+    _log_diffuse_points(self, name, positions, lifetimes, kinds, radius, material.color, hidden)
 
 
 def _log_diffuse_points(viewer, name, positions, lifetimes, kinds, radius, rgba, hidden):
@@ -340,37 +339,21 @@ def _log_diffuse_points(viewer, name, positions, lifetimes, kinds, radius, rgba,
     viewer.log_points(name, positions, radii=radii, colors=colors, hidden=hidden)
 
 
-def log_fluid_diffuse_gl(
-    self,
-    name: str,
-    positions: wp.array | None,
-    velocities: wp.array | None = None,
-    lifetimes: wp.array | None = None,
-    kinds: wp.array | None = None,
-    *,
-    radius: float = 0.005,
-    color: tuple = (1.0, 1.0, 1.0, 0.8),
-    stretch_time: float = 1.0 / 60.0,
-    fade_length: float = 0.05,
-    hidden: bool = False,
-) -> None:
-    from .renderer import DiffuseMaterial  # noqa: PLC0415
+def _fluid_remove_diffuse_gl(self, name):
+    fluid_renderer(self).remove_diffuse_batch(self._qualify(name))
+    self.log_points(name, None, hidden=True)
 
+
+def _fluid_draw_diffuse_gl(self, name, positions, velocities, lifetimes, kinds, radius, material, hidden):
     qualified = self._qualify(name)
     fluid = fluid_renderer(self)
-    if positions is None:
-        fluid.remove_diffuse_batch(qualified)
-        self.log_points(name, None, hidden=True)
-        return
-    rgba = _check_diffuse(positions, velocities, lifetimes, kinds, radius, color, stretch_time, fade_length)
     if not self.fluid_surface:
         if qualified in fluid.diffuse_batches:
             fluid.diffuse_batches[qualified].hidden = True
-        _log_diffuse_points(self, name, positions, lifetimes, kinds, radius, rgba, hidden)
+        _log_diffuse_points(self, name, positions, lifetimes, kinds, radius, material.color, hidden)
         return
     if qualified in self.objects:
         self.objects[qualified].hidden = True
-    material = DiffuseMaterial(color=rgba, stretch_time=float(stretch_time), fade_length=float(fade_length))
     fluid.set_diffuse_batch(qualified, positions, velocities, lifetimes, kinds, radius, material, hidden)
 
 
@@ -400,15 +383,20 @@ def _fluid_surface_set(self, value: bool) -> None:
 def activate(viewer_module) -> None:
     """Extend the viewers of ``viewer_module`` (``newton._src.viewer``); idempotent."""
     check_upstream(viewer_module)
-    if not hasattr(viewer_module.ViewerBase, "log_fluid"):
-        viewer_module.ViewerBase.log_fluid = log_fluid
-        viewer_module.ViewerBase.log_fluid_diffuse = log_fluid_diffuse
+    base = viewer_module.ViewerBase
+    if not hasattr(base, "log_fluid"):
+        # one public signature on the base class; each viewer draws through the hooks
+        base.log_fluid, base._fluid_draw, base._fluid_remove = log_fluid, _fluid_draw, _fluid_remove
+        base.log_fluid_diffuse = log_fluid_diffuse
+        base._fluid_draw_diffuse, base._fluid_remove_diffuse = _fluid_draw_diffuse, _fluid_remove_diffuse
     gl_viewer = viewer_module.ViewerGL
-    if getattr(gl_viewer.log_fluid, "__name__", "") != "log_fluid_gl":
-        log_fluid_gl.__doc__ = log_fluid.__doc__
-        gl_viewer.log_fluid = log_fluid_gl
-        log_fluid_diffuse_gl.__doc__ = log_fluid_diffuse.__doc__
-        gl_viewer.log_fluid_diffuse = log_fluid_diffuse_gl
+    if not getattr(gl_viewer, "_newton_fluid_gl", False):
+        gl_viewer._newton_fluid_gl = True
+        gl_viewer._fluid_draw, gl_viewer._fluid_remove = _fluid_draw_gl, _fluid_remove_gl
+        gl_viewer._fluid_draw_diffuse, gl_viewer._fluid_remove_diffuse = (
+            _fluid_draw_diffuse_gl,
+            _fluid_remove_diffuse_gl,
+        )
         gl_viewer.fluid_surface = property(
             _fluid_surface_get,
             _fluid_surface_set,
