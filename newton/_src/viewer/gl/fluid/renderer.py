@@ -549,44 +549,20 @@ class FluidRendererGL:
         blur = np.zeros(shaders.MAX_BATCHES, dtype=np.float32)
         for index, batch in batches:
             blur[index] = self._blur_radius(batch)
-        prog = self._programs["filter"]
-        prog.use()
-        _uniform1f(gl, prog, "focal_px", focal_px)
-        gl.glUniform1i(_loc(gl, prog, "max_radius_px"), MAX_FILTER_RADIUS_PX)
-        gl.glUniform1fv(_loc(gl, prog, "blur_radius"), shaders.MAX_BATCHES, _floats(blur))
-        gl.glUniform1i(_loc(gl, prog, "depth_tex"), 0)
-        gl.glActiveTexture(gl.GL_TEXTURE0)
         gl.glBindVertexArray(self._empty_vao)
-        for source, target, direction in (
-            ("depth", "fbo_blur", (1.0, 0.0)),
-            ("depth_blur", "fbo_depth_only", (0.0, 1.0)),
-        ):
-            gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, t[target])
-            gl.glBindTexture(gl.GL_TEXTURE_2D, t[source])
-            gl.glUniform2f(_loc(gl, prog, "direction"), *direction)
-            gl.glDrawArrays(gl.GL_TRIANGLES, 0, 3)
-        prog.stop()
-        prog = self._programs["optical_filter"]
-        prog.use()
+        self._separable(gl, "filter", ("depth", "fbo_blur", "depth_blur", "fbo_depth_only"), focal_px, blur)
+        # the thickness is filtered at its half resolution, with the full-resolution depth beside it
         gl.glViewport(0, 0, half[0], half[1])
-        _uniform1f(gl, prog, "focal_px", focal_px * half[1] / height)
-        gl.glUniform1i(_loc(gl, prog, "depth_step"), 2)
-        gl.glUniform1i(_loc(gl, prog, "max_radius_px"), MAX_FILTER_RADIUS_PX)
-        gl.glUniform1fv(_loc(gl, prog, "blur_radius"), shaders.MAX_BATCHES, _floats(blur))
-        gl.glUniform1i(_loc(gl, prog, "optical_tex"), 0)
-        gl.glUniform1i(_loc(gl, prog, "depth_tex"), 1)
         gl.glActiveTexture(gl.GL_TEXTURE1)
         gl.glBindTexture(gl.GL_TEXTURE_2D, t["depth"])
-        gl.glActiveTexture(gl.GL_TEXTURE0)
-        for source, target, direction in (
-            ("optical", "fbo_optical_blur", (1.0, 0.0)),
-            ("optical_blur", "fbo_optical_only", (0.0, 1.0)),
-        ):
-            gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, t[target])
-            gl.glBindTexture(gl.GL_TEXTURE_2D, t[source])
-            gl.glUniform2f(_loc(gl, prog, "direction"), *direction)
-            gl.glDrawArrays(gl.GL_TRIANGLES, 0, 3)
-        prog.stop()
+        self._separable(
+            gl,
+            "optical_filter",
+            ("optical", "fbo_optical_blur", "optical_blur", "fbo_optical_only"),
+            focal_px * half[1] / height,
+            blur,
+            depth_step=2,
+        )
         gl.glViewport(0, 0, width, height)
         timer.mark("smooth")
 
@@ -607,6 +583,30 @@ class FluidRendererGL:
         gl.glActiveTexture(gl.GL_TEXTURE0)
         gl.glDepthFunc(gl.GL_LESS)
         timer.mark("shade")
+
+    def _separable(self, gl, program, chain, focal_px, blur, depth_step=None):
+        """Horizontal then vertical pass of a filter: ``chain`` = (source, fbo of the middle texture,
+        middle texture, fbo of the result); the source is sampled from unit 0, the depth from unit 1."""
+        t = self._targets
+        prog = self._programs[program]
+        prog.use()
+        _uniform1f(gl, prog, "focal_px", focal_px)
+        gl.glUniform1i(_loc(gl, prog, "max_radius_px"), MAX_FILTER_RADIUS_PX)
+        gl.glUniform1fv(_loc(gl, prog, "blur_radius"), shaders.MAX_BATCHES, _floats(blur))
+        if depth_step is None:
+            gl.glUniform1i(_loc(gl, prog, "depth_tex"), 0)
+        else:
+            gl.glUniform1i(_loc(gl, prog, "optical_tex"), 0)
+            gl.glUniform1i(_loc(gl, prog, "depth_tex"), 1)
+            gl.glUniform1i(_loc(gl, prog, "depth_step"), depth_step)
+        gl.glActiveTexture(gl.GL_TEXTURE0)
+        source, middle_fbo, middle, target_fbo = chain
+        for texture, fbo, direction in ((source, middle_fbo, (1.0, 0.0)), (middle, target_fbo, (0.0, 1.0))):
+            gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, t[fbo])
+            gl.glBindTexture(gl.GL_TEXTURE_2D, t[texture])
+            gl.glUniform2f(_loc(gl, prog, "direction"), *direction)
+            gl.glDrawArrays(gl.GL_TRIANGLES, 0, 3)
+        prog.stop()
 
     def _draw_diffuse(self, gl, diffuse, view, proj):
         """Velocity-stretched sprites of the diffuse batches, blended into the frame buffer."""
