@@ -21,6 +21,7 @@ The frame buffer is then presented again, so ``viewer.get_frame()`` sees the com
 from __future__ import annotations
 
 import ctypes
+import weakref
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -182,8 +183,7 @@ class FluidRendererGL:
             # the default blur width follows the radius: read it once per radii array, not per frame
             batch.extra["radii_key"] = (id(radii), n)
             batch.mean_radius = float(np.mean(radii.numpy()[:n]))
-        none_f = wp.empty(0, dtype=float, device=device)
-        none_v = wp.empty(0, dtype=wp.vec4, device=device)
+        none_f, none_v = _absent(float, device), _absent(wp.vec4, device)
         axes = anisotropy if anisotropy is not None else (none_v, none_v, none_v)
         wp.launch(
             pack_fluid_instances,
@@ -210,9 +210,7 @@ class FluidRendererGL:
         if not self._prepare(gl, batch, material, hidden, positions):
             return
         n, device = batch.count, positions.device
-        none_v = wp.empty(0, dtype=wp.vec3, device=device)
-        none_f = wp.empty(0, dtype=float, device=device)
-        none_i = wp.empty(0, dtype=wp.int32, device=device)
+        none_v, none_f, none_i = _absent(wp.vec3, device), _absent(float, device), _absent(wp.int32, device)
         wp.launch(
             pack_diffuse_instances,
             dim=n,
@@ -792,8 +790,27 @@ def _floats(array):
     return array.ctypes.data_as(ctypes.POINTER(ctypes.c_float))
 
 
+_ABSENT = {}
+
+
+def _absent(dtype, device):
+    """An empty array standing for an argument that was not given (made once per type and device, not per frame)."""
+    key = (dtype, str(device))
+    if key not in _ABSENT:
+        _ABSENT[key] = wp.empty(0, dtype=dtype, device=device)
+    return _ABSENT[key]
+
+
+# uniform locations per program object (GL names are reused across contexts, objects are not)
+_LOCATIONS = weakref.WeakKeyDictionary()
+
+
 def _loc(gl, prog, name):
-    return gl.glGetUniformLocation(prog.id, name.encode())
+    """Uniform location, looked up once per program (every pass sets its uniforms each frame)."""
+    locations = _LOCATIONS.setdefault(prog, {})
+    if name not in locations:
+        locations[name] = gl.glGetUniformLocation(prog.id, name.encode())
+    return locations[name]
 
 
 def _uniform1f(gl, prog, name, value):
