@@ -124,6 +124,8 @@ def main(argv=None):
                 Image.fromarray(frame).save(args.png)
             except ImportError:
                 np.save(args.png + ".npy", frame)
+        # the scene's simulation settings and density at the drawn state (the solver's own measure)
+        stats = example.solver.fluid_diagnostics(example.state_0)
         gl = viewer.renderer.gl
         gl_renderer = ctypes.cast(gl.glGetString(gl.GL_RENDERER), ctypes.c_char_p).value.decode()
         viewer.close()
@@ -136,6 +138,10 @@ def main(argv=None):
         "device_name": device.name,
         "gl_renderer": gl_renderer,
         "particles": int(example.model.particle_count),
+        "substeps": int(example.sim_substeps),
+        "iterations": int(example.solver.iterations),
+        "mean_abs_density_error": stats["mean_abs_density_error"],
+        "max_compression": stats["max_compression"],
         "resolution": [args.width, args.height],
         "cuda_gl_interop": bool(device.is_cuda and fluid._cuda_interop),
         "ms_update_render_particles": med(render_particles),
