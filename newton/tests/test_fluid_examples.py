@@ -21,6 +21,8 @@ EXAMPLES = {
     "fluid_xpbd_foam": (["--particle-count", "4000"], 120),
     "fluid_xpbd_multiworld": (["--world-count", "8", "--particle-count", "3000"], 60),
     "fluid_xpbd_interactive_tank": (["--particle-count", "3000"], 100),
+    "fluid_xpbd_multi_fluid_tank": (["--particle-count", "3000"], 300),
+    "fluid_xpbd_sdf_container": (["--particle-count", "3000"], 240),
 }
 
 

@@ -460,6 +460,41 @@ def test_resize_keeps_working(test, device):
     test.assertGreater(sizes[5], 1.5 * sizes[4])  # the same fluid covers more pixels in the larger frame
 
 
+def test_viewer_picks_fluid_particles(test, device):
+    from newton._src.viewer.gl.fluid.picking import FluidPicking  # noqa: PLC0415
+
+    scene = Scene(ground=True)  # no fluid: upstream's picking
+    test.assertNotIsInstance(scene.viewer.picking, FluidPicking)
+    builder = newton.ModelBuilder()
+    builder.add_particle_grid(
+        pos=wp.vec3(0.0),
+        rot=wp.quat_identity(),
+        vel=wp.vec3(0.0),
+        dim_x=4,
+        dim_y=4,
+        dim_z=2,
+        cell_x=S,
+        cell_y=S,
+        cell_z=S,
+        mass=1000.0 * S**3,
+        jitter=0.0,
+        radius_mean=R,
+        flags=int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID),
+    )
+    model = builder.finalize(device="cpu")
+    scene.viewer.set_model(model)
+    test.assertIsInstance(scene.viewer.picking, FluidPicking)
+    state = model.state()
+    scene.viewer.picking.pick(state, (0.0, 0.0, 1.0), (0.0, 0.0, -1.0))
+    q = state.particle_q.numpy()
+    top = int(np.flatnonzero(np.all(np.abs(q - (0.0, 0.0, S)) < 1.0e-6, axis=1))[0])
+    test.assertEqual(scene.viewer.picking.pick_particle, top)  # the top layer's particle at the origin
+    state.clear_forces()
+    scene.viewer.picking.update((0.1, 0.0, 1.0), (0.0, 0.0, -1.0))
+    scene.viewer.apply_forces(state)
+    test.assertGreater(state.particle_f.numpy()[top, 0], 0.0)
+
+
 class TestFluidRenderGL(unittest.TestCase):
     pass
 

@@ -183,6 +183,52 @@ def test_density_solve_conserves_momentum(test, device):
     np.testing.assert_allclose(sim.qd().sum(axis=0) * MASS, p0, atol=1.0e-5 * np.abs(v).sum() * MASS)
 
 
+def test_two_densities_rest_and_stratify(test, device):
+    heavy_mass = 3.0 * MASS
+
+    def build_lattice(b):
+        add_block(b, (7, 7, 7))
+        b.particle_mass[len(b.particle_mass) // 2 :] = [heavy_mass] * (len(b.particle_mass) - len(b.particle_mass) // 2)
+
+    # a lattice of two particle masses is at the rest density of each: no pressure at the interface
+    sim = Sim(make_model(device, build_lattice))
+    q0 = sim.q()
+    sim.step(20)
+    test.assertLess(np.abs(sim.q() - q0).max(), 1.0e-4 * D)
+    stats = sim.solver.fluid_diagnostics(sim.state_0)
+    rho = sim.solver.fluid_density.numpy()
+    masses = sim.model.particle_mass.numpy().astype(np.float64)
+    interior = np.all(np.abs(q0 - q0.mean(axis=0)) < 2.0 * D + 1.0e-6, axis=1)
+    # each particle at its own rest density: the reference one times its mass over the mean mass
+    expected = stats["rest_density"] * masses / masses.mean()
+    test.assertGreater(np.ptp(expected[interior]), 0.9 * expected.mean())
+    np.testing.assert_allclose(rho[interior], expected[interior], rtol=1.0e-3)
+    test.assertLess(stats["mean_compression"], 1.0e-4)
+
+    # lock exchange: a heavy column beside a light one of the same height slumps under it
+    def build_columns(b):
+        add_block(b, (2, 5, 8), origin=(0.5 * D, 0.5 * D, 0.5 * D))
+        add_block(b, (3, 5, 8), origin=(2.5 * D, 0.5 * D, 0.5 * D))
+        b.particle_mass[:80] = [heavy_mass] * 80
+        b.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(mu=0.0))
+        cfg = newton.ModelBuilder.ShapeConfig(mu=0.0)
+        for c, h in (((-0.05, 0.25, 1.0), (0.05, 0.35, 1.0)), ((0.55, 0.25, 1.0), (0.05, 0.35, 1.0))):
+            b.add_shape_box(-1, xform=wp.transform(wp.vec3(*c), wp.quat_identity()), hx=h[0], hy=h[1], hz=h[2], cfg=cfg)
+        for c, h in (((0.25, -0.05, 1.0), (0.35, 0.05, 1.0)), ((0.25, 0.55, 1.0), (0.35, 0.05, 1.0))):
+            b.add_shape_box(-1, xform=wp.transform(wp.vec3(*c), wp.quat_identity()), hx=h[0], hy=h[1], hz=h[2], cfg=cfg)
+
+    model = make_model(device, build_columns, gravity=-9.81)
+    model.soft_contact_mu = 0.0
+    heavy = model.particle_mass.numpy() > 2.0 * MASS
+    sim = Sim(model, substeps=8, contacts=True, fluid_viscosity=0.05)
+    sim.step(60)
+    q = sim.q()
+    test.assertTrue(np.isfinite(q).all())
+    # both columns started with their centres at the same height; the heavy one ends below
+    test.assertLess(q[heavy, 2].mean() - q[~heavy, 2].mean(), -0.2)
+    test.assertTrue(np.all(np.abs(q[:, :2] - 0.25) < 0.3) and q[:, 2].min() > 0.0)
+
+
 def replicate_blocks(device, worlds, velocities):
     """A fluid block per world, all worlds at the same place, world ``w`` thrown with ``velocities[w]``."""
     builder = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))

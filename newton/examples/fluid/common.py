@@ -5,6 +5,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import warp as wp
 
 import newton
@@ -81,17 +82,29 @@ class FluidExample:
             self.simulate()
         self.sim_time += self.frame_dt
 
-    def log_water(self, name: str = "/water", positions: wp.array | None = None, **material) -> None:
+    def log_water(
+        self, name: str = "/water", positions: wp.array | None = None, particles: slice | None = None, **material
+    ) -> None:
         """Draw the fluid from the solver's render particles (after ``update_render_particles``;
-        ``positions`` replaces their centres)."""
+        ``positions`` replaces their centres, ``particles`` selects a contiguous range of particles)."""
+        s = self.solver
+        arrays = [
+            s.render_positions if positions is None else positions,
+            self.model.particle_radius,
+            s.render_anisotropy,
+            s.render_anisotropy_secondary,
+            s.render_anisotropy_tertiary,
+        ]
+        if particles is not None:
+            arrays = [a[particles] for a in arrays]
         self.viewer.log_fluid(
             name,
-            self.solver.render_positions if positions is None else positions,
-            radii=self.model.particle_radius,
+            arrays[0],
+            radii=arrays[1],
             radius_scale=1.3,
-            anisotropy=self.solver.render_anisotropy,
-            anisotropy_secondary=self.solver.render_anisotropy_secondary,
-            anisotropy_tertiary=self.solver.render_anisotropy_tertiary,
+            anisotropy=arrays[2],
+            anisotropy_secondary=arrays[3],
+            anisotropy_tertiary=arrays[4],
             **{**WATER, **material},
         )
 
@@ -107,3 +120,44 @@ class FluidExample:
             radius=radius,
             **material,
         )
+
+
+def revolved_container(inner: np.ndarray, thickness: float, segments: int = 48) -> newton.Mesh:
+    """A watertight container mesh: the inner wall profile revolved about z, with a wall of ``thickness``.
+
+    Args:
+        inner: Inner wall profile, shape (K, 2): radius and height [m] from the inner floor
+            (height ``thickness``) up to the rim, heights increasing.
+        thickness: Wall and floor thickness [m].
+        segments: Facets around the axis.
+
+    Returns:
+        newton.Mesh: closed, outward-wound surface (floor, outer wall, rim, inner wall, inner floor),
+        so particle contacts get a signed distance with the inside of the wall negative.
+    """
+    inner = np.asarray(inner, dtype=np.float64)
+    outer = inner + np.array([thickness, 0.0])
+    outer[0, 1] = 0.0  # the outer wall starts at the ground
+    # closed profile in the (r, z) half plane, counter-clockwise seen with r to the right and z up:
+    # axis at the bottom, out along the floor, up the outside, over the rim, down the inside, to the axis
+    profile = np.vstack([[[0.0, 0.0]], outer, inner[::-1], [[0.0, inner[0, 1]]]])
+    angles = np.linspace(0.0, 2.0 * np.pi, segments, endpoint=False)
+    vertices, rings = [], []
+    for r, z in profile:
+        if r == 0.0:
+            rings.append([len(vertices)] * segments)
+            vertices.append((0.0, 0.0, z))
+        else:
+            rings.append(list(range(len(vertices), len(vertices) + segments)))
+            vertices.extend((r * np.cos(a), r * np.sin(a), z) for a in angles)
+    indices = []
+    for lower, upper in zip(rings[:-1], rings[1:], strict=True):
+        for k in range(segments):
+            k1 = (k + 1) % segments
+            a, b, c, e = lower[k], lower[k1], upper[k1], upper[k]
+            # degenerate triangles at the axis are skipped
+            if a != b:
+                indices.extend((a, b, c))
+            if c != e:
+                indices.extend((a, c, e))
+    return newton.Mesh(np.asarray(vertices, dtype=np.float32), np.asarray(indices, dtype=np.int32))

@@ -5,8 +5,8 @@
 
 The boxes and the water act on each other through the particle-shape contacts of SolverXPBD
 (two-way coupling): the water lifts a light box until it floats with the part of its volume
-under water that its density asks for, a heavy box goes to the floor. Pick a box (or drag the
-water around it) with the mouse in the GL viewer.
+under water that its density asks for, a heavy box goes to the floor. In the GL viewer, the right mouse
+button picks a box or drags a blob of water, whichever the cursor meets first.
 
 Success criteria:
 - The light box (250 kg/m^3) floats with its top out of the water; the middle one (700 kg/m^3)

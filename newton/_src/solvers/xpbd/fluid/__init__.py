@@ -268,6 +268,9 @@ _FLUID_DOC = """
                 Defaults to 1.8 x ``fluid_rest_distance``.
             fluid_rest_density: Rest density [kg/m^3], > 0. Defaults to the poly6 density of a cubic lattice at
                 the rest distance with the mean fluid particle mass, so such a lattice is exactly at rest.
+                This is the rest density of a particle of the mean mass; a particle of mass ``m`` has
+                ``fluid_rest_density * m / mean_mass``, so groups of different particle mass at the same
+                spacing are fluids of different density in one solve.
             fluid_cohesion: Akinci-style pair cohesion, in [0, 1]. Defaults to 0.
             fluid_viscosity: Per-substep blend toward the neighbourhood velocity, in [0, 1]. Defaults to 0.
             fluid_vorticity: Vorticity confinement strength [m/s], >= 0. Defaults to 0 (off).

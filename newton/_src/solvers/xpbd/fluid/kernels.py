@@ -39,8 +39,9 @@ class FluidParams:
     h2: float
     poly6: float  # 315 / (64 pi h^9)
     spiky_grad: float  # -45 / (pi h^6)
-    rest_density: float  # [kg/m^3]
+    rest_density: float  # of a particle of the reference mass [kg/m^3]
     inv_rest_density: float
+    reference_mass: float  # mean fluid particle mass [kg]: the density sums count neighbours at this mass
     rest_distance: float  # [m]
     epsilon: float  # regulariser of the lambda denominator [1/m^2]
     relaxation: float
@@ -145,13 +146,17 @@ def fluid_neighbor_count(slots: FluidSlots, i: int):
 
 @wp.func
 def density_term(xi: wp.vec3, xj4: wp.vec4, pi: int, sorted_particle: wp.array[wp.int32], j: int, p: FluidParams):
-    """Neighbour ``j``'s share of slot ``i``'s constraint: ``(grad C_i w.r.t. x_j, m_j W_ij)``, zero beyond ``h``."""
+    """Neighbour ``j``'s share of slot ``i``'s constraint: ``(grad C_i w.r.t. x_j, m W_ij)``, zero beyond ``h``.
+
+    ``m`` is the reference mass, not ``m_j``: the constraint is on the number density, so that a
+    particle's rest density is in proportion to its own mass and fluids of different density mix.
+    """
     r = xi - wp.vec3(xj4[0], xj4[1], xj4[2])
     r2 = wp.dot(r, r)
     if r2 >= p.h2:
         return wp.vec4(0.0)
-    g = spiky_gradient(r, r2, pi, sorted_particle, j, p) * (xj4[3] * p.inv_rest_density)
-    return wp.vec4(g[0], g[1], g[2], xj4[3] * poly6(r2, p))
+    g = spiky_gradient(r, r2, pi, sorted_particle, j, p) * (p.reference_mass * p.inv_rest_density)
+    return wp.vec4(g[0], g[1], g[2], p.reference_mass * poly6(r2, p))
 
 
 @wp.func
@@ -173,11 +178,13 @@ def correction_term(
     dist = wp.sqrt(r2)
     n = pair_direction(r, dist, pi, sorted_particle, j, p)
     d = p.h - dist
-    dx = n * (p.spiky_grad * d * d * (lam_i + lam_j) * xj4[3] * p.inv_rest_density)
+    # mass-weighted (2 m_j / (m_i + m_j), 1 for equal masses) so that the pair's momentum is
+    # unchanged: the lighter particle gives way, which is what makes a heavier fluid sink
+    share = 2.0 * xj4[3] / (xi4[3] + xj4[3])
+    dx = n * (p.spiky_grad * d * d * (lam_i + lam_j) * p.reference_mass * p.inv_rest_density * share)
     coh = wp.vec3(0.0)
     if p.cohesion > 0.0:
-        # mass-weighted so that the pair's momentum is unchanged
-        coh = n * (-2.0 * xj4[3] / (xi4[3] + xj4[3]) * akinci_cohesion(dist, p))
+        coh = n * (-share * akinci_cohesion(dist, p))
     return wp.spatial_vector(dx, coh)
 
 
@@ -240,7 +247,7 @@ def compute_fluid_density_lambda(
     p = params[0]
     xi4 = slots.xm[i]
     xi = wp.vec3(xi4[0], xi4[1], xi4[2])
-    rho = xi4[3] * poly6(0.0, p)
+    rho = p.reference_mass * poly6(0.0, p)
     grad_i = wp.vec3(0.0)
     grad_sq = float(0.0)
     count = fluid_neighbor_count(slots, i)

@@ -294,6 +294,7 @@ class FluidSolver:
         p.spiky_grad = -45.0 / (math.pi * h**6)
         p.rest_density = self.rest_density
         p.inv_rest_density = 1.0 / self.rest_density
+        p.reference_mass = self.mean_mass
         p.rest_distance = d
         # the gradients scale with m/rho0, so does their rest norm
         scale = self.lattice_density / self.rest_density
@@ -623,7 +624,8 @@ def summarize_fluid_density(
     if pi < 0:
         return
     rho = density[i]
-    particle_density[pi] = rho
+    # the sums count neighbours at the reference mass; a particle's own density scales with its mass
+    particle_density[pi] = rho * slots.xm[i][3] / params[0].reference_mass
     e = rho * params[0].inv_rest_density - 1.0
     nb = float(slots.neighbor_count[i])
     wp.atomic_add(summary, 0, 1.0)

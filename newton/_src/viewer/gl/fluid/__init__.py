@@ -26,7 +26,7 @@ SUPPORTED_NEWTON = "1.8.0"
 # attributes of RendererGL checked when the first fluid frame is drawn
 _CLASS_NAMES = {
     "ViewerBase": ("log_points", "_qualify"),
-    "ViewerGL": ("log_points", "_qualify"),
+    "ViewerGL": ("log_points", "_qualify", "set_model"),
     "RendererGL": ("render", "_make_current", "gl"),
 }
 _RENDERER_NAMES = (
@@ -403,6 +403,24 @@ def activate(viewer_module) -> None:
             doc="Draw ``log_fluid`` batches as a liquid surface (True, default) or as raw particles (False).",
         )
         gl_viewer.fluid_renderer = property(fluid_renderer)
+        upstream_set_model = gl_viewer.set_model
+
+        def set_model(self, model, *args, **kwargs):
+            upstream_set_model(self, model, *args, **kwargs)
+            # fluid particles can be picked too: the same picking, extended
+            if model is not None and getattr(self, "picking", None) is not None and model.particle_count:
+                from newton._src.geometry.flags import ParticleFlags  # noqa: PLC0415
+
+                from .picking import FluidPicking  # noqa: PLC0415
+
+                if np.any(model.particle_flags.numpy() & int(ParticleFlags.FLUID)):
+                    self.picking = FluidPicking(
+                        model, world_offsets=self.world_offsets, visible_worlds_mask=self._visible_worlds_mask
+                    )
+
+        set_model.__doc__ = upstream_set_model.__doc__
+        set_model.__wrapped__ = upstream_set_model
+        gl_viewer.set_model = set_model
 
         from newton._src.viewer.gl.opengl import RendererGL  # noqa: PLC0415
 
