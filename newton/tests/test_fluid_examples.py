@@ -23,6 +23,8 @@ EXAMPLES = {
     "fluid_xpbd_interactive_tank": (["--particle-count", "3000"], 100),
     "fluid_xpbd_multi_fluid_tank": (["--particle-count", "3000"], 300),
     "fluid_xpbd_sdf_container": (["--particle-count", "3000"], 240),
+    "fluid_xpbd_wave_pool": (["--particle-count", "4500"], 240),
+    "fluid_xpbd_cup_transfer": (["--particle-count", "2000"], 540),
 }
 
 

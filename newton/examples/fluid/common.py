@@ -66,9 +66,13 @@ class FluidExample:
                 self.simulate()
             self.graph = capture.graph
 
+    def prescribe(self, state: newton.State) -> None:
+        """Set scripted (kinematic) body poses in ``state`` before a substep; nothing by default."""
+
     def simulate(self):
         for _ in range(self.sim_substeps):
             self.state_0.clear_forces()
+            self.prescribe(self.state_0)
             # mouse picking and wind of the GL viewer
             self.viewer.apply_forces(self.state_0)
             self.collision.collide(self.state_0, self.contacts)
@@ -120,6 +124,12 @@ class FluidExample:
             radius=radius,
             **material,
         )
+
+
+@wp.kernel
+def advance_clock(clock: wp.array[float], dt: float):
+    """Add ``dt`` [s] to a device-side clock (so captured graphs see the time advance)."""
+    clock[0] = clock[0] + dt
 
 
 def revolved_container(inner: np.ndarray, thickness: float, segments: int = 48) -> newton.Mesh:
