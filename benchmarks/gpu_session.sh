@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/performance.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|ncu|variants|tolerance|diffuse|render|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|ncu|variants|tolerance|diffuse|render|gallery|gltests|tests]...
 set -u
 out=${1:?output folder}; shift
 export PYTHONUNBUFFERED=1
@@ -36,13 +36,29 @@ for what in "$@"; do
     diffuse)
       # the same run with diffuse particles on (25,000 capacity), against the plain one of 'bench'
       python3 benchmarks/dam_break.py --diffuse 25000 --trials 3 --json "$out/dam_break_100k_diffuse.json" 2>&1 | grep -A1 "^device" ;;
+    gallery)
+      # every example captured at its default particle count (1280x720, 30 fps from 60 Hz), its last frame kept:
+      # the stills of docs/gallery.rst and the capture throughput of docs/performance.md.
+      # GALLERY_ONLY="name ..." limits it to some examples (in that order).
+      specs=("dam_break 60" "foam 36" "multiworld 120" "interactive_tank 150" "multi_fluid_tank 300"
+             "sdf_container 45" "wave_pool 240" "cup_transfer 270" "archimedes_screw 270")
+      for only in ${GALLERY_ONLY:-}; do for spec in "${specs[@]}"; do [[ $spec == "$only "* ]] && picked+=("$spec"); done; done
+      for spec in "${picked[@]:-${specs[@]}}"; do
+        read -r name frames <<< "$spec"
+        echo "== $name ($frames frames)"
+        PYGLET_HEADLESS=1 python3 -m newton.examples "fluid_xpbd_$name" --capture "$out/$name.mp4" \
+          --capture-still "$out/$name.png" --num-frames "$frames" 2>&1 | grep -v '^Module' | tr '\r' '\n' | tail -2
+        rm -f "$out/$name.mp4"
+        # one archive, grown per example: the device hands back only a few files per command
+        (cd "$out" && tar rf gallery.tar "$name.png" "$name.mp4.json" && rm -f "$name.png" "$name.mp4.json")
+      done ;;
     gltests)
       # the image tests on NVIDIA's GL (the resize test needs Xvfb, which GPU machines lack)
       python3 -m pytest -q newton/tests/test_fluid_render_gl.py -k "not resize" 2>&1 | tail -15 ;;
     tests)
       python3 -m pytest -q -k cuda newton/tests/test_solver_xpbd_fluid.py newton/tests/test_fluid_examples.py \
         newton/tests/test_fluid_extension.py newton/tests/test_fluid_diffuse.py newton/tests/test_fluid_render_particles.py \
-        newton/tests/test_fluid_validation.py \
+        newton/tests/test_fluid_validation.py newton/tests/test_fluid_picking.py \
         2>&1 | tail -25 ;;
   esac
 done

@@ -25,6 +25,7 @@ EXAMPLES = {
     "fluid_xpbd_sdf_container": (["--particle-count", "3000"], 240),
     "fluid_xpbd_wave_pool": (["--particle-count", "4500"], 240),
     "fluid_xpbd_cup_transfer": (["--particle-count", "2000"], 540),
+    "fluid_xpbd_archimedes_screw": (["--particle-count", "6000"], 240),
 }
 
 
@@ -75,7 +76,19 @@ def test_capture_writes_video_and_sidecar(test, device):
     with tempfile.TemporaryDirectory() as tmp:
         path = str(Path(tmp) / "dam.mp4")
         args = Example.create_parser().parse_args(
-            ["--particle-count", "2000", "--num-frames", "8", "--capture", path, "--capture-size", "320", "180"]
+            [
+                "--particle-count",
+                "2000",
+                "--num-frames",
+                "8",
+                "--capture",
+                path,
+                "--capture-size",
+                "320",
+                "180",
+                "--capture-still",
+                str(Path(tmp) / "still.png"),
+            ]
         )
         with wp.ScopedDevice(device):
             sidecar = capture.capture(Example, args, "fluid_xpbd_dam_break")
@@ -83,6 +96,10 @@ def test_capture_writes_video_and_sidecar(test, device):
         test.assertEqual(frames.shape, (4, 180, 320, 3))  # 8 frames at 60 Hz -> 4 at 30 fps
         # the fluid is in the picture: the frames differ from one another as it falls
         test.assertGreater(abs(frames[-1].astype(float) - frames[0].astype(float)).mean(), 0.05)
+        still = iio.imread(Path(tmp) / "still.png")
+        test.assertEqual(still.shape[:2], (180, 320))
+        # the still is the last frame (the video's is the same picture through H.264)
+        test.assertLess(abs(still[..., :3].astype(float) - frames[-1].astype(float)).mean(), 8.0)
         on_disk = json.loads(Path(path + ".json").read_text())
         test.assertEqual(on_disk, json.loads(json.dumps(sidecar)))
         for key, value in (
@@ -98,6 +115,22 @@ def test_capture_writes_video_and_sidecar(test, device):
         test.assertGreater(on_disk["particles"], 1500)
         for key in ("wall_time_s", "simulated_time_s", "device", "newton", "warp"):
             test.assertIn(key, on_disk)
+        test.assertLess(on_disk["max_compression"], 0.2)
+        test.assertGreater(on_disk["mean_abs_density_error"], 0.0)
+
+
+def test_every_example_is_tested_and_listed(test, device):
+    package = importlib.import_module("newton.examples.fluid")
+    here = Path(next(iter(package.__path__)))
+    modules = sorted(p.stem.removeprefix("example_") for p in here.glob("example_fluid_xpbd_*.py"))
+    test.assertEqual(len(modules), 9)
+    test.assertEqual(sorted(EXAMPLES), modules)
+    listings = readme_listings()
+    if listings is None:
+        test.skipTest("README.md is part of the source checkout, not of the installed wheel")
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text(encoding="utf-8")
+    for name in modules:
+        test.assertIn(f"`{name}`", readme)
 
 
 class TestFluidExamples(unittest.TestCase):
@@ -121,6 +154,12 @@ add_function_test(
 )
 add_function_test(
     TestFluidExamples, "test_readme_listings_run", test_readme_listings_run, devices=devices, check_output=False
+)
+add_function_test(
+    TestFluidExamples,
+    "test_every_example_is_tested_and_listed",
+    test_every_example_is_tested_and_listed,
+    devices=[wp.get_device("cpu")],
 )
 
 if __name__ == "__main__":

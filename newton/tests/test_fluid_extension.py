@@ -174,7 +174,18 @@ def test_examples_listed(test, device):
         [sys.executable, "-m", "newton.examples", "--list"], capture_output=True, text=True, timeout=600, check=False
     )
     test.assertEqual(out.returncode, 0, out.stderr)
-    test.assertIn("fluid_xpbd_dam_break", out.stdout)
+    for name in (
+        "dam_break",
+        "foam",
+        "multiworld",
+        "interactive_tank",
+        "multi_fluid_tank",
+        "sdf_container",
+        "wave_pool",
+        "cup_transfer",
+        "archimedes_screw",
+    ):
+        test.assertIn(f"fluid_xpbd_{name}", out.stdout)
     test.assertIn("basic_pendulum", out.stdout)  # upstream examples are still there
     described = subprocess.run(
         [sys.executable, "-m", "newton.examples", "--describe", "fluid_xpbd_dam_break"],

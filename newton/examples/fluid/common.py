@@ -13,8 +13,15 @@ import newton
 WATER = {"color": (0.2, 0.45, 0.9, 0.3), "absorption": (4.0, 1.2, 0.5)}
 
 
-def add_tank(builder: newton.ModelBuilder, half_x: float, half_y: float, height: float, thickness: float) -> None:
-    """Four frictionless walls around ``|x| <= half_x``, ``|y| <= half_y`` [m] in the builder's current world.
+def add_tank(
+    builder: newton.ModelBuilder,
+    half_x: float,
+    half_y: float,
+    height: float,
+    thickness: float,
+    center: tuple[float, float] = (0.0, 0.0),
+) -> None:
+    """Four frictionless walls around ``|x - cx| <= half_x``, ``|y - cy| <= half_y`` [m] (``center = (cx, cy)``).
 
     The front (-y) wall collides but is not drawn, like the glass of a real tank, so a camera in
     front sees in.
@@ -26,9 +33,9 @@ def add_tank(builder: newton.ModelBuilder, half_x: float, half_y: float, height:
         ((0.0, -half_y - t, hz), (half_x, t, hz)),
         ((0.0, half_y + t, hz), (half_x, t, hz)),
     )
-    for k, (center, half) in enumerate(walls):
+    for k, (c, half) in enumerate(walls):
         cfg = newton.ModelBuilder.ShapeConfig(mu=0.0, is_visible=k != 2)
-        xform = wp.transform(wp.vec3(*center), wp.quat_identity())
+        xform = wp.transform(wp.vec3(center[0] + c[0], center[1] + c[1], c[2]), wp.quat_identity())
         builder.add_shape_box(-1, xform=xform, hx=half[0], hy=half[1], hz=half[2], cfg=cfg)
 
 
@@ -132,6 +139,38 @@ def advance_clock(clock: wp.array[float], dt: float):
     clock[0] = clock[0] + dt
 
 
+def revolved_profile(profile: np.ndarray, segments: int = 48) -> newton.Mesh:
+    """A watertight mesh: a closed polygon of the (r, z) half plane revolved about z.
+
+    Args:
+        profile: Vertices (radius, height) [m], shape (K, 2), counter-clockwise with r to the
+            right and z up (so the surface is wound outward); vertices on the axis (r = 0) close
+            the surface there.
+        segments: Facets around the axis.
+    """
+    angles = np.linspace(0.0, 2.0 * np.pi, segments, endpoint=False)
+    vertices, rings = [], []
+    for r, z in profile:
+        if r == 0.0:
+            rings.append([len(vertices)] * segments)
+            vertices.append((0.0, 0.0, z))
+        else:
+            rings.append(list(range(len(vertices), len(vertices) + segments)))
+            vertices.extend((r * np.cos(a), r * np.sin(a), z) for a in angles)
+    indices = []
+    closed = rings if profile[0][0] == 0.0 and profile[-1][0] == 0.0 else [*rings, rings[0]]
+    for lower, upper in zip(closed[:-1], closed[1:], strict=True):
+        for k in range(segments):
+            k1 = (k + 1) % segments
+            a, b, c, e = lower[k], lower[k1], upper[k1], upper[k]
+            # degenerate triangles at the axis are skipped
+            if a != b:
+                indices.extend((a, b, c))
+            if c != e:
+                indices.extend((a, c, e))
+    return newton.Mesh(np.asarray(vertices, dtype=np.float32), np.asarray(indices, dtype=np.int32))
+
+
 def revolved_container(inner: np.ndarray, thickness: float, segments: int = 48) -> newton.Mesh:
     """A watertight container mesh: the inner wall profile revolved about z, with a wall of ``thickness``.
 
@@ -148,26 +187,6 @@ def revolved_container(inner: np.ndarray, thickness: float, segments: int = 48) 
     inner = np.asarray(inner, dtype=np.float64)
     outer = inner + np.array([thickness, 0.0])
     outer[0, 1] = 0.0  # the outer wall starts at the ground
-    # closed profile in the (r, z) half plane, counter-clockwise seen with r to the right and z up:
     # axis at the bottom, out along the floor, up the outside, over the rim, down the inside, to the axis
     profile = np.vstack([[[0.0, 0.0]], outer, inner[::-1], [[0.0, inner[0, 1]]]])
-    angles = np.linspace(0.0, 2.0 * np.pi, segments, endpoint=False)
-    vertices, rings = [], []
-    for r, z in profile:
-        if r == 0.0:
-            rings.append([len(vertices)] * segments)
-            vertices.append((0.0, 0.0, z))
-        else:
-            rings.append(list(range(len(vertices), len(vertices) + segments)))
-            vertices.extend((r * np.cos(a), r * np.sin(a), z) for a in angles)
-    indices = []
-    for lower, upper in zip(rings[:-1], rings[1:], strict=True):
-        for k in range(segments):
-            k1 = (k + 1) % segments
-            a, b, c, e = lower[k], lower[k1], upper[k1], upper[k]
-            # degenerate triangles at the axis are skipped
-            if a != b:
-                indices.extend((a, b, c))
-            if c != e:
-                indices.extend((a, c, e))
-    return newton.Mesh(np.asarray(vertices, dtype=np.float32), np.asarray(indices, dtype=np.int32))
+    return revolved_profile(profile, segments)

@@ -84,7 +84,7 @@ class Example(FluidExample):
         builder = newton.ModelBuilder()
         self.links = add_panda(builder)
         hand = self.links[-1]
-        cfg = newton.ModelBuilder.ShapeConfig(mu=0.0, density=0.0)
+        cfg = newton.ModelBuilder.ShapeConfig(mu=0.0, density=0.0, has_shape_collision=False)
         # the hand and a finger reaching to the cup
         builder.add_shape_box(
             hand,
@@ -142,7 +142,7 @@ class Example(FluidExample):
         self.water_travel = 0.0
         self.start_water = pts.mean(axis=0)
         self.setup_simulation()
-        self.viewer.set_camera(wp.vec3(1.3, 0.0, 0.7), pitch=-22.0, yaw=180.0)
+        self.viewer.set_camera(wp.vec3(0.95, -0.25, 0.95), pitch=-58.0, yaw=138.0)
 
     def _cup_world(self, link7: np.ndarray) -> np.ndarray:
         """4x4 world transform of the cup's frame (z up the cup's axis, origin on its outer floor)."""

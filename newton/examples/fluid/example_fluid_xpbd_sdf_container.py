@@ -41,6 +41,14 @@ def inner_radius(z):
     return np.where(z < 0.28, bulb, 0.09 + 0.5 * (z - 0.28))
 
 
+def back_half(mesh: newton.Mesh) -> newton.Mesh:
+    """The triangles of ``mesh`` behind the plane y = 0 (for a cut-away picture)."""
+    v = np.asarray(mesh.vertices)
+    tri = np.asarray(mesh.indices).reshape(-1, 3)
+    keep = tri[v[tri].mean(axis=1)[:, 1] > 0.0]
+    return newton.Mesh(v, keep.ravel(), compute_inertia=False, is_solid=False)
+
+
 class Example(FluidExample):
     def __init__(self, viewer, args):
         super().__init__(viewer)
@@ -68,7 +76,10 @@ class Example(FluidExample):
         builder.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(mu=0.0))
         profile = np.linspace(WALL, RIM, 40)
         vase = revolved_container(np.stack([inner_radius(profile), profile], axis=1), WALL, segments=64)
-        builder.add_shape_mesh(-1, mesh=vase, cfg=newton.ModelBuilder.ShapeConfig(mu=0.0))
+        # the water meets the whole vase; the picture shows its back half (a cut-away), so the water is seen
+        builder.add_shape_mesh(-1, mesh=vase, cfg=newton.ModelBuilder.ShapeConfig(mu=0.0, is_visible=False))
+        visual = newton.ModelBuilder.ShapeConfig(has_shape_collision=False, has_particle_collision=False)
+        builder.add_shape_mesh(-1, mesh=back_half(vase), cfg=visual)
         self.model = builder.finalize()
         self.model.soft_contact_mu = 0.0
         self.model.particle_max_velocity = 0.25 * d / self.sim_dt
@@ -78,7 +89,7 @@ class Example(FluidExample):
             self.model, iterations=2, fluid_rest_distance=d, fluid_viscosity=0.02, fluid_cohesion=0.2
         )
         self.setup_simulation()
-        self.viewer.set_camera(wp.vec3(0.0, -0.75, 0.75), pitch=-45.0, yaw=90.0)
+        self.viewer.set_camera(wp.vec3(0.0, -0.9, 0.45), pitch=-18.0, yaw=90.0)
 
     def step(self):
         super().step()

@@ -31,11 +31,11 @@ from newton.examples.fluid.capture import main as capture_or_run
 from newton.examples.fluid.common import FluidExample, add_tank, advance_clock
 
 POOL_HALF = (1.0, 0.2)  # inner half extents in x and y [m]
-WALL_HEIGHT = 0.5  # [m]
+WALL_HEIGHT = 0.6  # [m]
 DEPTH = 0.2  # still water depth [m]
 BEACH_SLOPE = math.radians(14.0)
 BEACH_TOE = 0.1  # x where the ramp leaves the floor [m]
-PADDLE_X = -0.9  # rest position of the paddle's centre [m]
+PADDLE_X = -0.85  # rest position of the paddle's centre [m]
 PADDLE_HALF = (0.02, 0.2, 0.2)  # [m]
 STROKE = 0.09  # amplitude of the paddle's stroke [m]
 PERIOD = 1.1  # [s]
@@ -70,7 +70,7 @@ class Example(FluidExample):
     def __init__(self, viewer, args):
         super().__init__(viewer)
         hx, hy = POOL_HALF
-        x0 = -hx
+        x0 = PADDLE_X + PADDLE_HALF[0] + STROKE  # water starts in front of the paddle's stroke; behind it is dry
         shore = BEACH_TOE + DEPTH / math.tan(BEACH_SLOPE)
         volume = 2.0 * hy * DEPTH * ((BEACH_TOE - x0) + 0.5 * (shore - BEACH_TOE))
         d = (volume / args.particle_count) ** (1.0 / 3.0)
@@ -78,13 +78,11 @@ class Example(FluidExample):
         builder = newton.ModelBuilder()
         # a lattice over the water's cross-section, clipped to the beach
         xs = np.arange(x0 + 0.5 * d, shore, d)
-        ys = np.arange(-hy + 0.5 * d, hy, d)
+        ys = np.arange(-hy + 0.5 * d, hy - 0.49 * d, d)  # at least half a spacing from the walls
         zs = np.arange(0.5 * d, DEPTH, d)
         x, y, z = np.meshgrid(xs, ys, zs, indexing="ij")
         pts = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
         pts = pts[pts[:, 2] > beach_height(pts[:, 0]) + 0.5 * d / math.cos(BEACH_SLOPE)]
-        # water on both sides of the paddle (it is open at its sides), none inside it
-        pts = pts[np.abs(pts[:, 0] - PADDLE_X) > PADDLE_HALF[0] + 0.5 * d]
         #: still-water shoreline: the farthest particle up the beach at rest [m]
         self.shoreline = float(pts[:, 0].max())
         builder.add_particles(
@@ -97,7 +95,8 @@ class Example(FluidExample):
         builder.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(mu=0.0))
         add_tank(builder, hx, hy, WALL_HEIGHT, 0.04)
         # the beach: a thick slab rotated about y, its top face through the toe
-        slab_half = (0.7, hy, 0.1)
+        # from the toe to the far wall along the slope
+        slab_half = (0.5 * (hx - BEACH_TOE) / math.cos(BEACH_SLOPE), hy, 0.1)
         c, s = math.cos(BEACH_SLOPE), math.sin(BEACH_SLOPE)
         top_mid = np.array([BEACH_TOE + slab_half[0] * c, 0.0, slab_half[0] * s])
         center = top_mid - slab_half[2] * np.array([-s, 0.0, c])

@@ -81,8 +81,9 @@ def add_panda(builder: newton.ModelBuilder, link_radius: float = 0.045) -> list[
     Returns:
         list[int]: body indices of the base and links 1..7 (link ``i`` at entry ``i``).
     """
-    # massless shapes: the kinematic links' frames are their centres of mass
-    cfg = newton.ModelBuilder.ShapeConfig(mu=0.0, density=0.0)
+    # massless shapes: the kinematic links' frames are their centres of mass; scripted links need no
+    # rigid contacts with each other, only with the fluid
+    cfg = newton.ModelBuilder.ShapeConfig(mu=0.0, density=0.0, has_shape_collision=False)
     base = builder.add_body(is_kinematic=True, label="panda_link0")
     builder.add_shape_capsule(
         base,
