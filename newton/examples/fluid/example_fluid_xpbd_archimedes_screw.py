@@ -31,7 +31,7 @@ from newton.examples.fluid.capture import main as capture_or_run
 from newton.examples.fluid.common import FluidExample, add_tank, advance_clock, revolved_profile
 
 BASIN = (-0.7, 0.8, 0.2)  # x from, x to, half width in y [m]
-BASIN_WALL = 0.35  # [m]
+BASIN_WALL = 0.75  # [m]: above the outflow, so splashes from the wheel stay in
 DEPTH = 0.15  # still water depth [m]
 INCLINE = math.radians(32.0)
 SCREW_BASE = (-0.55, 0.0, 0.12)  # centre of the tube's lower end [m]
