@@ -9,6 +9,8 @@ import numpy as np
 import warp as wp
 
 import newton
+import newton.examples
+from newton.examples.fluid.capture import add_capture_arguments
 
 WATER = {"color": (0.2, 0.45, 0.9, 0.3), "absorption": (4.0, 1.2, 0.5)}
 
@@ -48,6 +50,8 @@ class FluidExample:
 
     fps = 60
     sim_substeps = 8
+    #: default of ``--particle-count``
+    default_particle_count = 100_000
 
     def __init__(self, viewer):
         self.viewer = viewer
@@ -92,6 +96,33 @@ class FluidExample:
         else:
             self.simulate()
         self.sim_time += self.frame_dt
+
+    @classmethod
+    def create_parser(cls):
+        """Newton's example arguments, the capture arguments and ``--particle-count``."""
+        parser = newton.examples.create_parser()
+        add_capture_arguments(parser)
+        parser.add_argument(
+            "--particle-count", type=int, default=cls.default_particle_count, help="Approximate fluid particle count."
+        )
+        return parser
+
+    def viscosity_gui(self, ui) -> None:
+        """A viscosity slider (assign to ``gui``); device parameters, so a captured graph picks up new values."""
+        changed, value = ui.slider_float("viscosity", self.solver.fluid_viscosity, 0.0, 1.0)
+        if changed:
+            self.solver.fluid_viscosity = value
+
+    def render(self):
+        self.solver.update_render_particles(self.state_0)
+        self.viewer.begin_frame(self.sim_time)
+        self.viewer.log_state(self.state_0)
+        self.log_fluids()
+        self.viewer.end_frame()
+
+    def log_fluids(self) -> None:
+        """Draw this frame's fluid batches (by default, the water from the render particles)."""
+        self.log_water()
 
     def log_water(
         self, name: str = "/water", positions: wp.array | None = None, particles: slice | None = None, **material

@@ -26,7 +26,6 @@ import warp as wp
 
 import newton
 import newton.examples
-from newton.examples.fluid.capture import add_capture_arguments
 from newton.examples.fluid.capture import main as capture_or_run
 from newton.examples.fluid.common import FluidExample, add_tank, advance_clock, revolved_profile
 
@@ -93,6 +92,8 @@ def turn_screw(
 
 
 class Example(FluidExample):
+    default_particle_count = 130_000
+
     def __init__(self, viewer, args):
         super().__init__(viewer)
         x_lo, x_hi, hy = BASIN
@@ -235,17 +236,7 @@ class Example(FluidExample):
                 self.wheel_angle += step
             self._last_wheel = angle
 
-    def gui(self, ui):
-        changed, value = ui.slider_float("viscosity", self.solver.fluid_viscosity, 0.0, 1.0)
-        if changed:
-            self.solver.fluid_viscosity = value
-
-    def render(self):
-        self.solver.update_render_particles(self.state_0)
-        self.viewer.begin_frame(self.sim_time)
-        self.viewer.log_state(self.state_0)
-        self.log_water()
-        self.viewer.end_frame()
+    gui = FluidExample.viscosity_gui
 
     def test_final(self):
         d = self.spacing
@@ -261,13 +252,6 @@ class Example(FluidExample):
         if self.sim_time > 3.9:
             assert self.max_lifted > 0.01 * self.fluid_count, (self.max_lifted, self.fluid_count)
             assert abs(self.wheel_angle) > 0.5 * math.pi, self.wheel_angle
-
-    @staticmethod
-    def create_parser():
-        parser = newton.examples.create_parser()
-        add_capture_arguments(parser)
-        parser.add_argument("--particle-count", type=int, default=130_000, help="Approximate fluid particle count.")
-        return parser
 
 
 if __name__ == "__main__":

@@ -27,7 +27,6 @@ import warp as wp
 
 import newton
 import newton.examples
-from newton.examples.fluid.capture import add_capture_arguments
 from newton.examples.fluid.capture import main as capture_or_run
 from newton.examples.fluid.common import FluidExample, advance_clock, revolved_container
 from newton.examples.fluid.panda import (
@@ -75,8 +74,9 @@ CUP_OFFSET = wp.transform(
 class Example(FluidExample):
     sim_substeps = 10
 
+    default_particle_count = 20_000
+
     def __init__(self, viewer, args):
-        self.sim_substeps = Example.sim_substeps
         super().__init__(viewer)
         volume = math.pi * CUP_RADIUS**2 * FILL
         d = (volume / args.particle_count) ** (1.0 / 3.0)
@@ -194,17 +194,7 @@ class Example(FluidExample):
             q = self.state_0.particle_q.numpy()
             self.water_travel = max(self.water_travel, float(np.linalg.norm(q.mean(axis=0) - self.start_water)))
 
-    def gui(self, ui):
-        changed, value = ui.slider_float("viscosity", self.solver.fluid_viscosity, 0.0, 1.0)
-        if changed:
-            self.solver.fluid_viscosity = value
-
-    def render(self):
-        self.solver.update_render_particles(self.state_0)
-        self.viewer.begin_frame(self.sim_time)
-        self.viewer.log_state(self.state_0)
-        self.log_water()
-        self.viewer.end_frame()
+    gui = FluidExample.viscosity_gui
 
     def test_final(self):
         assert self.max_outside == 0, f"{self.max_outside} particles outside the cup"
@@ -213,13 +203,6 @@ class Example(FluidExample):
             travel = float(np.linalg.norm(self.cup_frame()[:3, 3] - self.start_cup))
             assert travel > 0.7, travel
             assert self.water_travel > 0.7, self.water_travel
-
-    @staticmethod
-    def create_parser():
-        parser = newton.examples.create_parser()
-        add_capture_arguments(parser)
-        parser.add_argument("--particle-count", type=int, default=20_000, help="Approximate fluid particle count.")
-        return parser
 
 
 if __name__ == "__main__":

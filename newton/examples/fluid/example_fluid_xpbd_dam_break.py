@@ -21,7 +21,6 @@ import warp as wp
 
 import newton
 import newton.examples
-from newton.examples.fluid.capture import add_capture_arguments
 from newton.examples.fluid.capture import main as capture_or_run
 from newton.examples.fluid.common import FluidExample, add_tank
 
@@ -115,14 +114,10 @@ class Example(FluidExample):
             if changed:
                 setattr(self.solver, name, max(value, 1.0e-3) if name == "fluid_relaxation" else value)
 
-    def render(self):
+    def log_fluids(self):
         # smoothed centres and ellipsoids for the surface; they do not feed back into the simulation
-        self.solver.update_render_particles(self.state_0)
-        self.viewer.begin_frame(self.sim_time)
-        self.viewer.log_state(self.state_0)
         self.log_water("/fluid")
         self.log_foam(radius=0.25 * self.spacing)
-        self.viewer.end_frame()
 
     def test_final(self):
         q = self.state_0.particle_q.numpy()
@@ -145,13 +140,6 @@ class Example(FluidExample):
         stats = self.solver.fluid_diagnostics(self.state_0)
         assert stats["max_compression"] < 0.08, stats
         assert stats["nonfinite_recovered"] == 0, stats
-
-    @staticmethod
-    def create_parser():
-        parser = newton.examples.create_parser()
-        add_capture_arguments(parser)
-        parser.add_argument("--particle-count", type=int, default=100_000, help="Approximate fluid particle count.")
-        return parser
 
 
 if __name__ == "__main__":

@@ -23,7 +23,6 @@ import warp as wp
 import newton
 import newton.examples
 from newton._src.solvers.xpbd.fluid.diffuse import DIFFUSE_BUBBLE, DIFFUSE_DEAD, DIFFUSE_FOAM, DIFFUSE_SPRAY
-from newton.examples.fluid.capture import add_capture_arguments
 from newton.examples.fluid.capture import main as capture_or_run
 from newton.examples.fluid.common import FluidExample, add_tank
 
@@ -37,6 +36,8 @@ DROP = 0.3  # gap between the pool's surface and the column's bottom [m]
 
 
 class Example(FluidExample):
+    default_particle_count = 60_000
+
     def __init__(self, viewer, args):
         super().__init__(viewer)
 
@@ -99,13 +100,9 @@ class Example(FluidExample):
             self.kinds_seen.update(int(k) for k in np.unique(kinds) if k != DIFFUSE_DEAD)
             self.max_alive = max(self.max_alive, int(np.count_nonzero(kinds != DIFFUSE_DEAD)))
 
-    def render(self):
-        self.solver.update_render_particles(self.state_0)
-        self.viewer.begin_frame(self.sim_time)
-        self.viewer.log_state(self.state_0)
+    def log_fluids(self):
         self.log_water(color=(0.2, 0.45, 0.9, 0.2), absorption=(3.0, 1.0, 0.4))
         self.log_foam(radius=0.6 * self.spacing, color=(1.0, 1.0, 1.0, 0.9))
-        self.viewer.end_frame()
 
     def test_final(self):
         emitted = int(self.solver.diffuse_emitted_count.numpy()[0])
@@ -125,13 +122,6 @@ class Example(FluidExample):
             assert abs(depth - expected) < 2.0 * d + 0.1 * expected, (depth, expected)
         stats = self.solver.fluid_diagnostics(self.state_0)
         assert stats["nonfinite_recovered"] == 0, stats
-
-    @staticmethod
-    def create_parser():
-        parser = newton.examples.create_parser()
-        add_capture_arguments(parser)
-        parser.add_argument("--particle-count", type=int, default=60_000, help="Approximate fluid particle count.")
-        return parser
 
 
 if __name__ == "__main__":

@@ -23,7 +23,6 @@ import warp as wp
 
 import newton
 import newton.examples
-from newton.examples.fluid.capture import add_capture_arguments
 from newton.examples.fluid.capture import main as capture_or_run
 from newton.examples.fluid.common import FluidExample, add_tank
 
@@ -72,18 +71,7 @@ class Example(FluidExample):
         self.setup_simulation()
         self.viewer.set_camera(wp.vec3(0.0, -1.9, 1.1), pitch=-28.0, yaw=90.0)
 
-    def gui(self, ui):
-        # device parameters: a captured graph picks up the new values
-        changed, value = ui.slider_float("viscosity", self.solver.fluid_viscosity, 0.0, 1.0)
-        if changed:
-            self.solver.fluid_viscosity = value
-
-    def render(self):
-        self.solver.update_render_particles(self.state_0)
-        self.viewer.begin_frame(self.sim_time)
-        self.viewer.log_state(self.state_0)
-        self.log_water()
-        self.viewer.end_frame()
+    gui = FluidExample.viscosity_gui
 
     def test_final(self):
         body_q = self.state_0.body_q.numpy()
@@ -106,13 +94,6 @@ class Example(FluidExample):
             assert not inside.any(), f"{np.count_nonzero(inside)} particles inside box {k}"
         tol = 0.25 * d
         assert np.all(np.abs(q[:, :2]) <= TANK_HALF + tol) and np.all(q[:, 2] >= -tol), "water left the tank"
-
-    @staticmethod
-    def create_parser():
-        parser = newton.examples.create_parser()
-        add_capture_arguments(parser)
-        parser.add_argument("--particle-count", type=int, default=100_000, help="Approximate fluid particle count.")
-        return parser
 
 
 if __name__ == "__main__":

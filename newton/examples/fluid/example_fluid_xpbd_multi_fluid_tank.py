@@ -27,7 +27,6 @@ import warp as wp
 
 import newton
 import newton.examples
-from newton.examples.fluid.capture import add_capture_arguments
 from newton.examples.fluid.capture import main as capture_or_run
 from newton.examples.fluid.common import FluidExample, add_tank
 
@@ -94,18 +93,11 @@ class Example(FluidExample):
         self.setup_simulation()
         self.viewer.set_camera(wp.vec3(0.0, -1.5, 0.5), pitch=-15.0, yaw=90.0)
 
-    def gui(self, ui):
-        changed, value = ui.slider_float("viscosity", self.solver.fluid_viscosity, 0.0, 1.0)
-        if changed:
-            self.solver.fluid_viscosity = value
+    gui = FluidExample.viscosity_gui
 
-    def render(self):
-        self.solver.update_render_particles(self.state_0)
-        self.viewer.begin_frame(self.sim_time)
-        self.viewer.log_state(self.state_0)
+    def log_fluids(self):
         for (name, _density, color, absorption), group in zip(FLUIDS, self.groups, strict=True):
             self.log_water(f"/{name}", particles=group, color=color, absorption=absorption)
-        self.viewer.end_frame()
 
     def test_final(self):
         q = self.state_0.particle_q.numpy()
@@ -129,13 +121,6 @@ class Example(FluidExample):
         tol = 0.25 * d
         inside = (np.abs(q[:, 0]) <= hx + tol) & (np.abs(q[:, 1]) <= hy + tol) & (q[:, 2] >= -tol)
         assert inside.all(), f"{np.count_nonzero(~inside)} particles left the tank"
-
-    @staticmethod
-    def create_parser():
-        parser = newton.examples.create_parser()
-        add_capture_arguments(parser)
-        parser.add_argument("--particle-count", type=int, default=100_000, help="Approximate fluid particle count.")
-        return parser
 
 
 if __name__ == "__main__":

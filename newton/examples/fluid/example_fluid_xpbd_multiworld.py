@@ -96,8 +96,7 @@ class Example(FluidExample):
         self.viewer.set_world_offsets((2 * TANK_HALF + 0.15, 2 * TANK_HALF + 0.15, 0.0))
         self.viewer.set_camera(wp.vec3(0.0, -1.6, 2.2), pitch=-52.0, yaw=90.0)
 
-    def render(self):
-        self.solver.update_render_particles(self.state_0)
+    def log_fluids(self):
         # all worlds overlap in the simulation; draw each at its tank's place in the grid
         wp.launch(
             offset_by_world,
@@ -105,10 +104,7 @@ class Example(FluidExample):
             inputs=[self.solver.render_positions, self.model.particle_world, self.viewer.world_offsets],
             outputs=[self.shown],
         )
-        self.viewer.begin_frame(self.sim_time)
-        self.viewer.log_state(self.state_0)
         self.log_water(positions=self.shown)
-        self.viewer.end_frame()
 
     def test_final(self):
         q = self.state_0.particle_q.numpy()

@@ -24,7 +24,6 @@ import warp as wp
 
 import newton
 import newton.examples
-from newton.examples.fluid.capture import add_capture_arguments
 from newton.examples.fluid.capture import main as capture_or_run
 from newton.examples.fluid.common import FluidExample, revolved_container
 
@@ -97,17 +96,7 @@ class Example(FluidExample):
             q = self.state_0.particle_q.numpy()
             self.highest = max(self.highest, float(np.percentile(q[:, 2], 99.5)))
 
-    def gui(self, ui):
-        changed, value = ui.slider_float("viscosity", self.solver.fluid_viscosity, 0.0, 1.0)
-        if changed:
-            self.solver.fluid_viscosity = value
-
-    def render(self):
-        self.solver.update_render_particles(self.state_0)
-        self.viewer.begin_frame(self.sim_time)
-        self.viewer.log_state(self.state_0)
-        self.log_water()
-        self.viewer.end_frame()
+    gui = FluidExample.viscosity_gui
 
     def test_final(self):
         q = self.state_0.particle_q.numpy().astype(np.float64)
@@ -123,13 +112,6 @@ class Example(FluidExample):
         if self.sim_time > 3.5:
             level = np.percentile(q[:, 2], 99) + 0.5 * d
             assert abs(level - self.rest_level) < 2.5 * d, (level, self.rest_level)
-
-    @staticmethod
-    def create_parser():
-        parser = newton.examples.create_parser()
-        add_capture_arguments(parser)
-        parser.add_argument("--particle-count", type=int, default=100_000, help="Approximate fluid particle count.")
-        return parser
 
 
 if __name__ == "__main__":

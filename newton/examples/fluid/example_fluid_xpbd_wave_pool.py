@@ -26,7 +26,6 @@ import warp as wp
 
 import newton
 import newton.examples
-from newton.examples.fluid.capture import add_capture_arguments
 from newton.examples.fluid.capture import main as capture_or_run
 from newton.examples.fluid.common import FluidExample, add_tank, advance_clock
 
@@ -150,17 +149,7 @@ class Example(FluidExample):
             runup = float(q[:, 0].max())  # the farthest water up the beach
             self.samples.append((self.sim_time, level, runup, self.state_0.body_q.numpy()[self.boxes, 2].copy()))
 
-    def gui(self, ui):
-        changed, value = ui.slider_float("viscosity", self.solver.fluid_viscosity, 0.0, 1.0)
-        if changed:
-            self.solver.fluid_viscosity = value
-
-    def render(self):
-        self.solver.update_render_particles(self.state_0)
-        self.viewer.begin_frame(self.sim_time)
-        self.viewer.log_state(self.state_0)
-        self.log_water()
-        self.viewer.end_frame()
+    gui = FluidExample.viscosity_gui
 
     def test_final(self):
         d = self.spacing
@@ -186,13 +175,6 @@ class Example(FluidExample):
         assert np.all(mean > DEPTH - 2.0 * BOX_HALF[2]), mean
         assert mean[0] > mean[2], mean
         assert np.all(np.ptp(heights[late], axis=0) > 1.0 * d), np.ptp(heights[late], axis=0)
-
-    @staticmethod
-    def create_parser():
-        parser = newton.examples.create_parser()
-        add_capture_arguments(parser)
-        parser.add_argument("--particle-count", type=int, default=100_000, help="Approximate fluid particle count.")
-        return parser
 
 
 if __name__ == "__main__":
