@@ -21,6 +21,30 @@ from newton._src.viewer.picking import Picking
 GRAVITY = 9.81  # [m/s^2], the unit of upstream's pick_max_acceleration
 
 
+@wp.func
+def fluid_ray_hit(
+    pi: int,
+    particle_q: wp.array[wp.vec3],
+    particle_radius: wp.array[float],
+    particle_world: wp.array[wp.int32],
+    world_offsets: wp.array[wp.vec3],
+    ray_start: wp.vec3,
+    ray_dir: wp.vec3,
+):
+    """Ray parameter at which the ray enters particle ``pi``'s sphere (drawn at its world's offset); inf if missed."""
+    x = particle_q[pi]
+    w = particle_world[pi]
+    if world_offsets.shape[0] > 0 and w >= 0 and w < world_offsets.shape[0]:
+        x = x + world_offsets[w]
+    r = particle_radius[pi]
+    rel = x - ray_start
+    t = wp.dot(rel, ray_dir)
+    miss2 = wp.dot(rel, rel) - t * t
+    if t > 0.0 and miss2 < r * r:
+        return t - wp.sqrt(r * r - miss2)
+    return wp.inf
+
+
 @wp.kernel
 def raycast_fluid_particles(
     fluid_particle: wp.array[wp.int32],
@@ -34,18 +58,10 @@ def raycast_fluid_particles(
     hit_distance: wp.array[float],
 ):
     """Smallest ray parameter at which the ray meets a fluid particle's sphere (``hit_distance[0]``)."""
-    i = wp.tid()
-    pi = fluid_particle[i]
-    x = particle_q[pi]
-    w = particle_world[pi]
-    if world_offsets.shape[0] > 0 and w >= 0 and w < world_offsets.shape[0]:
-        x = x + world_offsets[w]
-    r = particle_radius[pi]
-    rel = x - ray_start
-    t = wp.dot(rel, ray_dir)
-    miss2 = wp.dot(rel, rel) - t * t
-    if t > 0.0 and miss2 < r * r:
-        wp.atomic_min(hit_distance, 0, t - wp.sqrt(r * r - miss2))
+    pi = fluid_particle[wp.tid()]
+    h = fluid_ray_hit(pi, particle_q, particle_radius, particle_world, world_offsets, ray_start, ray_dir)
+    if h != wp.inf:
+        wp.atomic_min(hit_distance, 0, h)
 
 
 @wp.kernel
@@ -62,17 +78,9 @@ def select_fluid_particle(
     picked: wp.array[wp.int32],
 ):
     """The particle (largest index on ties) whose hit is ``hit_distance[0]``."""
-    i = wp.tid()
-    pi = fluid_particle[i]
-    x = particle_q[pi]
-    w = particle_world[pi]
-    if world_offsets.shape[0] > 0 and w >= 0 and w < world_offsets.shape[0]:
-        x = x + world_offsets[w]
-    r = particle_radius[pi]
-    rel = x - ray_start
-    t = wp.dot(rel, ray_dir)
-    miss2 = wp.dot(rel, rel) - t * t
-    if t > 0.0 and miss2 < r * r and t - wp.sqrt(r * r - miss2) == hit_distance[0]:
+    pi = fluid_particle[wp.tid()]
+    h = fluid_ray_hit(pi, particle_q, particle_radius, particle_world, world_offsets, ray_start, ray_dir)
+    if h == hit_distance[0]:
         wp.atomic_max(picked, 0, pi)
 
 
