@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/performance.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|ncu|variants|tolerance|diffuse|render|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|ncu|variants|tolerance|accuracy|surge|diffuse|render|gallery|gltests|tests]...
 set -u
 out=${1:?output folder}; shift
 export PYTHONUNBUFFERED=1
@@ -33,6 +33,13 @@ for what in "$@"; do
         PYGLET_HEADLESS=1 python3 benchmarks/render_fluid.py --width "$w" --height "$h" --png "$out/render_100k_${w}x${h}.png" \
           --json "$out/render_100k_${w}x${h}.json" 2>&1 | grep -v '^Module' | tail -14
       done ;;
+    accuracy)
+      # the speed-accuracy sweep of docs/validation.md at 99,200 particles (Koshizuka & Oka column, 40 per L x 31)
+      python3 -W ignore benchmarks/speed_accuracy.py --per-l 40 --depth 31 --sample-every 6 --tolerances 0.005 0.0025 0.001 \
+        --json "$out/speed_accuracy_100k_h100.json" 2>&1 | grep -v '^Module' ;;
+    surge)
+      # the surge front at finer resolutions than the CPU runs of docs/validation.md
+      python3 benchmarks/validate_dam_break.py --resolutions 40 60 80 --json "$out/koshizuka_oka_h100.json" 2>&1 | grep -v '^Module' ;;
     diffuse)
       # the same run with diffuse particles on (25,000 capacity), against the plain one of 'bench'
       python3 benchmarks/dam_break.py --diffuse 25000 --trials 3 --json "$out/dam_break_100k_diffuse.json" 2>&1 | grep -A1 "^device" ;;
@@ -58,7 +65,7 @@ for what in "$@"; do
     tests)
       python3 -m pytest -q -k cuda newton/tests/test_solver_xpbd_fluid.py newton/tests/test_fluid_examples.py \
         newton/tests/test_fluid_extension.py newton/tests/test_fluid_diffuse.py newton/tests/test_fluid_render_particles.py \
-        newton/tests/test_fluid_validation.py newton/tests/test_fluid_picking.py \
+        newton/tests/test_fluid_validation.py newton/tests/test_fluid_picking.py newton/tests/test_fluid_stress.py \
         2>&1 | tail -25 ;;
   esac
 done

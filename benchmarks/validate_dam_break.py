@@ -36,9 +36,22 @@ L = 0.146  # column width [m] (Koshizuka & Oka's, after Martin & Moyce)
 G = 9.81
 
 
-def run(per_l: int, args, points: np.ndarray, device) -> dict:
+def surge_front(q: np.ndarray, d: float) -> float:
+    """Front position [m]: the 99.9th percentile of x within two spacings of the floor, plus half a spacing.
+
+    ``q`` is measured from the column's back face (x) and the floor (z).
+    """
+    low = q[q[:, 2] < 2.0 * d]
+    return float(np.percentile(low[:, 0], 99.9) + 0.5 * d) if len(low) else 0.0
+
+
+def build(per_l: int, depth_layers: int, args, device, height: float = 2.5 * L, **solver_kwargs):
+    """The tank and column of Koshizuka & Oka at ``per_l`` particles across L: (model, solver, pipeline, dt).
+
+    ``args`` supplies ``substeps``, ``iterations``, ``cohesion``, ``viscosity``, ``speed_clamp`` and
+    ``floor_friction``; ``solver_kwargs`` go to the solver. The column's back face is at x = 0, the floor at z = 0.
+    """
     d = L / per_l
-    depth_layers = args.depth
     builder = newton.ModelBuilder()
     builder.add_particle_grid(
         pos=wp.vec3(0.5 * d, 0.5 * d, 0.5 * d),
@@ -60,7 +73,6 @@ def run(per_l: int, args, points: np.ndarray, device) -> dict:
     t = 0.05
     width = depth_layers * d
     length = 5.0 * L
-    height = 2.5 * L
     for center, half in (
         ((-t, 0.5 * width, 0.5 * height), (t, 0.5 * width + 2 * t, 0.5 * height)),
         ((length + t, 0.5 * width, 0.5 * height), (t, 0.5 * width + 2 * t, 0.5 * height)),
@@ -81,9 +93,16 @@ def run(per_l: int, args, points: np.ndarray, device) -> dict:
         fluid_rest_distance=d,
         fluid_cohesion=args.cohesion,
         fluid_viscosity=args.viscosity,
+        **solver_kwargs,
     )
-    s0, s1 = model.state(), model.state()
     pipeline = newton.CollisionPipeline(model, soft_contact_max=model.particle_count, soft_contact_gap=0.5 * d)
+    return model, solver, pipeline, dt
+
+
+def run(per_l: int, args, points: np.ndarray, device) -> dict:
+    d = L / per_l
+    model, solver, pipeline, dt = build(per_l, args.depth, args, device)
+    s0, s1 = model.state(), model.state()
     contacts = pipeline.contacts()
     t_scale = math.sqrt(L / (2.0 * G))  # t = T * t_scale
     times = points[:, 0] * t_scale
@@ -97,10 +116,7 @@ def run(per_l: int, args, points: np.ndarray, device) -> dict:
             s0, s1 = s1, s0
             sim_t += dt
             step += 1
-        q = s0.particle_q.numpy()
-        low = q[q[:, 2] < 2.0 * d]
-        front = (np.percentile(low[:, 0], 99.9) + 0.5 * d) if len(low) else 0.0
-        fronts.append(front / L)
+        fronts.append(surge_front(s0.particle_q.numpy(), d) / L)
     fronts = np.asarray(fronts)
     stats = solver.fluid_diagnostics(s0)
     error = (fronts - points[:, 1]) / points[:, 1]

@@ -82,6 +82,8 @@ def _make_property(name: str, mutable: bool):
         return getattr(self._fluid_config, name)
 
     def fset(self, value):
+        if self._fluid is not None:
+            self._fluid.check_change(name, value)
         self._fluid_config.set(name, value)
         if self._fluid is not None:
             self._fluid.update_params()
@@ -125,8 +127,10 @@ def fluid_diagnostics(self, state) -> dict:
         ``mean_compression`` and ``max_compression`` (of max(rho/rho0 - 1, 0)), ``neighbors_min``,
         ``neighbors_mean``, ``neighbors_max``, ``neighbor_overflow`` (particles with more neighbours
         than are stored), ``candidates_mean`` (particles examined per neighbourhood search) and
-        ``nonfinite_recovered`` (total count of recovered non-finite particles) and
-        ``density_subiterations`` (total density passes that corrected, with ``fluid_max_iterations`` > 1).
+        ``nonfinite_recovered`` (total count of recovered non-finite particles),
+        ``density_subiterations`` (total density passes that corrected, with ``fluid_max_iterations`` > 1),
+        ``fast_particle_substeps`` (particle substeps that travelled more than one rest distance; a
+        ``RuntimeWarning`` says when it grew since the last call).
         Empty for a model without fluid.
     """
     if self._fluid is None:
@@ -256,6 +260,11 @@ def activate(xpbd_module) -> None:
         lambda self: None if self._fluid is None else self._fluid.nonfinite_count,
         doc="Device counter (``wp.array`` of one int32) of fluid particles recovered from non-finite values.",
     )
+    cls.fluid_fast_count = property(
+        lambda self: None if self._fluid is None else self._fluid.fast_count,
+        doc="Device counter (``wp.array`` of one int32) of fluid particle substeps that travelled more than "
+        "one rest distance (slowed to ``fluid_max_displacement`` when it is finite).",
+    )
     for name in _FLUID_KWARGS:
         setattr(cls, name, _make_property(name, name in FluidConfig.MUTABLE))
     cls._fluid_extension = True
@@ -277,8 +286,16 @@ _FLUID_DOC = """
             fluid_relaxation: Scale of the density correction, in (0, 2]. Defaults to 1.
             fluid_max_neighbors: Neighbours used per particle, in [0, 4096]; 0 uses the whole neighbourhood.
             fluid_density_tolerance: Mean compression (of max(rho/rho0 - 1, 0)) at which the density passes
-                of an iteration stop, >= 0. Defaults to 0 (no early stop). Only used with fluid_max_iterations > 1.
+                stop, >= 0. Defaults to 0 (no early stop). With ``fluid_max_iterations`` 1 the substep's
+                remaining XPBD iterations skip the density pass (``iterations`` is then the most passes);
+                with more, the passes of each iteration stop. Decided on the device. To change it after
+                construction with ``fluid_max_iterations`` 1, create the solver with a value > 0.
             fluid_max_iterations: Density passes per XPBD iteration, in [1, 64]. Defaults to 1.
+            fluid_max_displacement: Longest travel of a fluid particle in one substep [rest distances], > 0.
+                Defaults to ``inf`` (no limit). Particles that travel more than one rest distance in a
+                substep are counted either way (``fluid_fast_count``; :meth:`fluid_diagnostics` warns):
+                past that they can cross a thin wall before its contact is found. 1 prevents it (in
+                closed containers under violent forcing) by slowing such particles, at the cost of their speed.
             max_diffuse_particles: Capacity of the ring buffer of diffuse (spray, foam, bubble) particles, >= 0;
                 0 is off (no cost). See ``diffuse_positions`` and the other ``diffuse_*`` attributes.
 """

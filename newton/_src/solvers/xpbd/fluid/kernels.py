@@ -46,6 +46,7 @@ class FluidParams:
     epsilon: float  # regulariser of the lambda denominator [1/m^2]
     relaxation: float
     max_correction: float  # bound of one iteration's density correction [m]
+    max_displacement: float  # bound of a fluid particle's travel in one substep [m]
     cohesion: float  # per-iteration cohesion displacement scale [m]
     cohesion_u0: float  # zero of Akinci's spline, as a fraction of h
     cohesion_in: float  # u0 / rest distance [1/m]
@@ -191,12 +192,13 @@ def correction_term(
 @wp.kernel
 def gather_fluid_positions(
     slots: FluidSlots,
+    active: wp.array[wp.int32],
     particle_q: wp.array[wp.vec3],
     particle_mass: wp.array[float],
 ):
     i = wp.tid()
     pi = slots.particle[i]
-    if pi < 0:
+    if pi < 0 or active[0] == 0:
         return
     x = particle_q[pi]
     slots.xm[i] = wp.vec4(x[0], x[1], x[2], particle_mass[pi])
@@ -300,16 +302,19 @@ def apply_fluid_density_correction(
 
     The correction is also written to ``slot_dx`` (for density sub-iterations). Unless
     ``keep_walls`` is set, the slot's wall share, which this pass has used, is cleared for the next
-    accumulation. Does nothing while ``active[0]`` is 0.
+    accumulation (also while ``active[0]`` is 0, when the pass does nothing else).
     """
     i = wp.tid()
     pi = slots.particle[i]
-    if pi < 0 or active[0] == 0:
+    if pi < 0:
         return
     wall_g = wall_grad[i]
     if keep_walls == 0:
+        # cleared even when the pass is skipped: the shares were accumulated for this pass only
         wall_grad[i] = wp.vec3(0.0)
         wall_c[i] = 0.0
+    if active[0] == 0:
+        return
     if particle_inv_mass[pi] == 0.0:
         slot_dx[i] = wp.vec3(0.0)
         return
@@ -468,6 +473,36 @@ def decide_fluid_subiteration(
 
 
 @wp.kernel
+def decide_fluid_density_converged(
+    params: wp.array[FluidParams],
+    bins: wp.array[float],
+    # in/out
+    active: wp.array[wp.int32],
+    bins_out: wp.array[float],
+    iterations_total: wp.array[wp.int32],
+):
+    """Skip this and the substep's remaining density passes once the mean compression is within the tolerance.
+
+    Reads and clears the compression sums of this pass's evaluation (``bins`` and ``bins_out`` are
+    the same array); counts the passes that go on to correct.
+    """
+    if active[0] == 0:
+        return
+    total = float(0.0)
+    count = float(0.0)
+    for b in range(COMPRESSION_BINS):
+        total += bins[b]
+        count += bins[COMPRESSION_BINS + b]
+        bins_out[b] = 0.0
+        bins_out[COMPRESSION_BINS + b] = 0.0
+    tolerance = params[0].density_tolerance
+    if count == 0.0 or (tolerance > 0.0 and total <= tolerance * count):
+        active[0] = 0
+        return
+    iterations_total[0] = iterations_total[0] + 1
+
+
+@wp.kernel
 def advance_fluid_slots(slots: FluidSlots, active: wp.array[wp.int32], slot_dx: wp.array[wp.vec3]):
     """Move the gathered positions by this sub-iteration's correction (the next one starts from there)."""
     i = wp.tid()
@@ -487,6 +522,7 @@ def accumulate_fluid_wall_density(
     contact_point: wp.array[wp.vec3],
     contact_normal: wp.array[wp.vec3],
     contact_max: int,
+    active: wp.array[wp.int32],
     shape_body: wp.array[int],
     slot_of_particle: wp.array[wp.int32],
     particle_q: wp.array[wp.vec3],
@@ -506,7 +542,7 @@ def accumulate_fluid_wall_density(
     packs closer than the rest distance before the constraint acts.
     """
     k = wp.tid()
-    if k >= wp.min(contact_count[0], contact_max):
+    if k >= wp.min(contact_count[0], contact_max) or active[0] == 0:
         return
     pi = contact_particle[k]
     slot = slot_of_particle[pi]
@@ -529,15 +565,23 @@ def accumulate_fluid_wall_density(
 
 @wp.kernel
 def recover_nonfinite_fluid(
+    params: wp.array[FluidParams],
     fluid_particle: wp.array[wp.int32],
     particle_flags: wp.array[wp.int32],
+    dt: float,
     # in/out
     particle_q: wp.array[wp.vec3],
     particle_qd: wp.array[wp.vec3],
     last_finite_q: wp.array[wp.vec3],
     nonfinite_count: wp.array[wp.int32],
+    fast_count: wp.array[wp.int32],
 ):
-    """Restore non-finite fluid particles to their last finite position at rest, and count them."""
+    """Restore non-finite fluid particles to their last finite position at rest, and count them.
+
+    Also counts the particles that would travel more than one rest distance in the next substep
+    (past that a particle can cross a thin wall before its contact is found) and slows them to
+    ``max_displacement / dt`` when that bound is set.
+    """
     k = wp.tid()
     pi = fluid_particle[k]
     if (particle_flags[pi] & ParticleFlags.ACTIVE) == 0:
@@ -546,6 +590,12 @@ def recover_nonfinite_fluid(
     v = particle_qd[pi]
     if wp.isfinite(x) and wp.isfinite(v):
         last_finite_q[k] = x
+        p = params[0]
+        travel = wp.length(v) * dt
+        if travel > p.rest_distance:
+            wp.atomic_add(fast_count, 0, 1)
+            if travel > p.max_displacement:
+                particle_qd[pi] = v * (p.max_displacement / travel)
     else:
         particle_q[pi] = last_finite_q[k]
         particle_qd[pi] = wp.vec3(0.0)

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -38,6 +39,7 @@ from .kernels import (
     apply_vorticity_confinement,
     begin_fluid_subiterations,
     compute_fluid_density_lambda,
+    decide_fluid_density_converged,
     decide_fluid_subiteration,
     gather_fluid_positions,
     gather_fluid_state,
@@ -96,6 +98,7 @@ class FluidConfig:
     fluid_max_neighbors: int = 0
     fluid_density_tolerance: float = 0.0
     fluid_max_iterations: int = 1
+    fluid_max_displacement: float = math.inf
     max_diffuse_particles: int = 0
 
     #: parameters that may change after construction (they live on the device)
@@ -106,6 +109,7 @@ class FluidConfig:
         "fluid_vorticity",
         "fluid_relaxation",
         "fluid_density_tolerance",
+        "fluid_max_displacement",
     )
 
     def __post_init__(self):
@@ -135,11 +139,41 @@ class FluidConfig:
             v = _real(name, value, 0.0, 1.0)
         elif name in ("fluid_vorticity", "fluid_density_tolerance"):
             v = _real(name, value, 0.0)
+        elif name == "fluid_max_displacement":
+            # inf (no limit) is allowed here, unlike for the other parameters
+            infinite = isinstance(value, numbers.Real) and not isinstance(value, bool) and value == math.inf
+            v = math.inf if infinite else _real(name, value, 0.0, lo_open=True)
         elif name == "fluid_relaxation":
             v = _real(name, value, 0.0, 2.0, lo_open=True)
         else:
             raise AttributeError(f"{name} cannot be changed after the solver is created")
         setattr(self, name, v)
+
+
+def fluid_memory_bytes(fluid_count: int, particle_count: int, neighbor_capacity: int, diffuse: int = 0) -> int:
+    """Device memory the fluid solve allocates [bytes] (render particles, allocated on first use, excluded).
+
+    Per fluid particle: the neighbour list (4 bytes a slot), the sort keys and values (twice the
+    count, for the radix sort), the cell table (at least two entries a particle, start and end)
+    and about 76 bytes of per-slot state; per model particle, two 4-byte maps; per diffuse
+    particle, 28 bytes.
+    """
+    per_fluid = 4 * neighbor_capacity + 16 + 16 + 32 + 76
+    return int(fluid_count * per_fluid + 8 * particle_count + 28 * diffuse)
+
+
+def free_memory(device) -> int | None:
+    """Free memory of ``device`` [bytes]: the CUDA device's, or the host's available memory; None if unknown."""
+    if device.is_cuda:
+        return int(device.free_memory)
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return None
 
 
 def rest_lattice(rest_distance: float, h: float) -> np.ndarray:
@@ -219,6 +253,14 @@ class FluidSolver:
             capacity, capped = config.fluid_max_neighbors, True
         else:
             capacity, capped = FULL_NEIGHBOR_FACTOR * self.rest_lattice_neighbors, False
+        need = fluid_memory_bytes(self.fluid_count, model.particle_count, capacity, config.max_diffuse_particles)
+        free = free_memory(self.device)
+        if free is not None and need > free:
+            raise MemoryError(
+                f"the fluid solve of {self.fluid_count} particles needs about {need / 2**30:.2f} GiB on "
+                f"{self.device}, and {free / 2**30:.2f} GiB are free: use fewer particles, or a smaller "
+                f"fluid_max_neighbors (now {capacity} neighbour slots per particle)"
+            )
         with wp.ScopedDevice(self.device):
             self.fluid_particle = wp.array(fluid_particle.astype(np.int32), dtype=wp.int32)
             worlds = model.particle_world.numpy()[fluid_particle]
@@ -239,6 +281,9 @@ class FluidSolver:
             # state of the density sub-iteration loop: an "always on" flag for the single pass,
             # and the loop's flag, correction count, compression bins and a total for diagnostics
             self._always_active = wp.ones(1, dtype=wp.int32)
+            # tolerance mode with one pass per iteration: cleared once a substep's density has converged
+            self._substep_active = wp.ones(1, dtype=wp.int32)
+            self.tolerance_mode = config.fluid_max_iterations > 1 or config.fluid_density_tolerance > 0.0
             self._loop_active = wp.zeros(1, dtype=wp.int32)
             self._loop_count = wp.zeros(1, dtype=wp.int32)
             self._compression_bins = wp.zeros(2 * COMPRESSION_BINS, dtype=float)
@@ -251,6 +296,8 @@ class FluidSolver:
             self.wall_table_grad = wp.array(wall_drho / self.lattice_density, dtype=float)
             self.last_finite_q = wp.array(model.particle_q.numpy()[fluid_particle], dtype=wp.vec3)
             self.nonfinite_count = wp.zeros(1, dtype=wp.int32)
+            self.fast_count = wp.zeros(1, dtype=wp.int32)
+            self._fast_reported = 0
             #: density of every particle at the state of the last :meth:`diagnostics` call [kg/m^3] (0 for non-fluid)
             self.particle_density = wp.zeros(model.particle_count, dtype=float)
             self._summary = wp.zeros(_SUMMARY_SIZE, dtype=float)
@@ -301,6 +348,7 @@ class FluidSolver:
         p.epsilon = EPSILON_RELATIVE * self.rest_grad_sq * scale * scale
         p.relaxation = c.fluid_relaxation
         p.max_correction = MAX_CORRECTION_FRACTION * d
+        p.max_displacement = min(c.fluid_max_displacement * d, 1.0e30)
         p.cohesion = c.fluid_cohesion * COHESION_DISPLACEMENT * d
         p.cohesion_u0 = AKINCI_ZERO
         p.cohesion_in = AKINCI_ZERO / d
@@ -316,9 +364,24 @@ class FluidSolver:
 
     # --- passes inside the upstream step ---------------------------------------------------------
 
+    @property
+    def iteration_tolerance(self) -> bool:
+        """Whether the tolerance stops the substep's XPBD iterations' density passes (one pass per iteration)."""
+        return self.config.fluid_max_iterations == 1 and self.tolerance_mode
+
+    def check_change(self, name: str, value) -> None:
+        """Refuse to switch the tolerance mode on after construction (its passes are not launched)."""
+        if name == "fluid_density_tolerance" and not self.tolerance_mode and value != 0.0:
+            raise ValueError(
+                f"fluid_density_tolerance={value!r} cannot be set on a solver created without it (and with "
+                "fluid_max_iterations 1): create the solver with fluid_density_tolerance > 0"
+            )
+
     def build_neighborhood(self, particle_q: wp.array) -> None:
         m = self.model
         self.search.build(particle_q, m.particle_mass, m.particle_flags, m.particle_world)
+        if self.iteration_tolerance:
+            self._substep_active.fill_(1)
         # the build gathered these positions into slot order: the first iteration uses them as they are
         self._slots_hold_positions = True
 
@@ -332,19 +395,30 @@ class FluidSolver:
         one every pass is launched and the passes after the decision do nothing (no synchronisation).
         """
         s, m, n = self.search, self.model, self.fluid_count
+        # with the tolerance on the XPBD iterations, a converged substep skips the rest of its passes
+        active = self._substep_active if self.iteration_tolerance else self._always_active
         if not self._slots_hold_positions:
             wp.launch(
                 gather_fluid_positions,
                 dim=n,
-                inputs=[s.slots, particle_q, m.particle_mass],
+                inputs=[s.slots, active, particle_q, m.particle_mass],
                 device=self.device,
             )
         # after this iteration's correction, the gathered positions are out of date
         self._slots_hold_positions = False
-        self._accumulate_walls(particle_q)
+        self._accumulate_walls(particle_q, active)
         if self.config.fluid_max_iterations == 1:
-            self._evaluate_constraint(self._always_active)
-            self._correct(particle_deltas, self._always_active, keep_walls=False)
+            self._evaluate_constraint(active, track_compression=self.iteration_tolerance)
+            if self.iteration_tolerance:
+                bins = self._compression_bins
+                wp.launch(
+                    decide_fluid_density_converged,
+                    dim=1,
+                    inputs=[self.params, bins],
+                    outputs=[active, bins, self.subiterations_total],
+                    device=self.device,
+                )
+            self._correct(particle_deltas, active, keep_walls=False)
             return
         wp.launch(
             begin_fluid_subiterations,
@@ -389,7 +463,7 @@ class FluidSolver:
             device=self.device,
         )
 
-    def _accumulate_walls(self, particle_q: wp.array) -> None:
+    def _accumulate_walls(self, particle_q: wp.array, active: wp.array) -> None:
         """Wall density of the fluid particles at ``particle_q`` from the step's particle-shape contacts."""
         contacts = self.contacts
         if not self._has_walls or contacts is None:
@@ -405,6 +479,7 @@ class FluidSolver:
                 contacts.soft_contact_body_pos,
                 contacts.soft_contact_normal,
                 contacts.soft_contact_max,
+                active,
                 self.model.shape_body,
                 self.search.slot_of_particle,
                 particle_q,
@@ -445,8 +520,14 @@ class FluidSolver:
         wp.launch(
             recover_nonfinite_fluid,
             dim=self.fluid_count,
-            inputs=[self.fluid_particle, self.model.particle_flags],
-            outputs=[state_out.particle_q, state_out.particle_qd, self.last_finite_q, self.nonfinite_count],
+            inputs=[self.params, self.fluid_particle, self.model.particle_flags, dt],
+            outputs=[
+                state_out.particle_q,
+                state_out.particle_qd,
+                self.last_finite_q,
+                self.nonfinite_count,
+                self.fast_count,
+            ],
             device=self.device,
         )
         if self.diffuse is not None:
@@ -566,6 +647,25 @@ class FluidSolver:
 
     # --- diagnostics -------------------------------------------------------------------------------
 
+    def _report_fast_particles(self) -> int:
+        """Particle substeps that travelled more than one rest distance; warns when they grew since the last report."""
+        count = int(self.fast_count.numpy()[0])
+        if count > self._fast_reported:
+            limit = self.config.fluid_max_displacement
+            action = (
+                f"they were slowed to fluid_max_displacement={limit:g} rest distances per substep"
+                if math.isfinite(limit)
+                else "past that a particle can cross a thin wall (fluid_max_displacement=1 prevents it)"
+            )
+            warnings.warn(
+                f"{count - self._fast_reported} fluid particle substeps since the last report travelled more than "
+                f"one rest distance: the substep is too long for the flow's speed (use more substeps); {action}",
+                RuntimeWarning,
+                stacklevel=3,
+            )
+        self._fast_reported = count
+        return count
+
     def diagnostics(self, state) -> dict:
         """Density and neighbourhood statistics of the fluid at ``state`` (synchronises; not for the hot loop)."""
         s, n = self.search, self.fluid_count
@@ -599,6 +699,7 @@ class FluidSolver:
             "neighbor_overflow": int(v[8]),
             "candidates_mean": float(v[9] * per),
             "nonfinite_recovered": int(self.nonfinite_count.numpy()[0]),
+            "fast_particle_substeps": self._report_fast_particles(),
             "density_subiterations": int(self.subiterations_total.numpy()[0]),
         }
 

@@ -1,0 +1,376 @@
+# SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
+# SPDX-License-Identifier: Apache-2.0
+
+"""The 2:1 dam break in our XPBD fluid and in SPlisHSPlasH's DFSPH, measured the same way.
+
+Both run the column of Koshizuka & Oka (1996) (width L = 0.146 m, height 2L, ``--depth`` layers
+deep, ``--per-l`` particles across L; 20 x 16 layers = 12,800 particles) in a frictionless tank
+5L long. Recorded for each, at the same simulated times: the surge front (as in
+``validate_dam_break.py``) at the experiment's data points, the energy (kinetic + potential over
+the initial potential) and the density error of the independent poly6 estimator of
+``dam_break.py`` (ghost-lattice walls at the fluid's boundary, kernel support 1.8 spacings). Prints a
+table and writes JSON (``--json``) and, with ``--plot``, a figure.
+
+SPlisHSPlasH (``pip install pysplishsplash``, CPU, OpenMP) runs DFSPH with its volume-map walls
+(Bender et al. 2019), adaptive CFL time step, its dam-break defaults (density error 0.05 %,
+divergence error 0.1 %, standard viscosity 0.01). Its fluid rests about one spacing from the wall
+geometry and particles closer than about 1.5 spacings are shot away at the start, so its walls are
+placed one spacing behind the column's faces (centres 1.5 spacings from them). For the density and
+energy its boundary planes are half a spacing behind the column's faces (where its resting centres
+are half a spacing inside them, as ours are inside ours); the front is measured from the column's
+back face for both.
+Importing it needs ``LD_PRELOAD=/lib/x86_64-linux-gnu/libGLdispatch.so.0``, which this script sets
+by re-executing itself.
+
+Usage::
+
+    python benchmarks/reference_dfsph.py [--per-l 20] [--depth 16] [--t-end 1.5] [--json out.json] [--plot out.png]
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import json
+import math
+import os
+import platform
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+GL_DISPATCH = "/lib/x86_64-linux-gnu/libGLdispatch.so.0"
+G = 9.81
+
+
+def _load(name: str):
+    spec = importlib.util.spec_from_file_location(name, HERE / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def sample_times(t_end: float, points: np.ndarray, L: float) -> np.ndarray:
+    """Every 1/60 s up to ``t_end`` and the experiment's data points, sorted [s]."""
+    frames = np.arange(1, int(round(t_end * 60.0)) + 1) / 60.0
+    return np.unique(np.concatenate([frames, points[:, 0] * math.sqrt(L / (2.0 * G))]))
+
+
+class Recorder:
+    """Front, energy and density of one run at the sample times (positions from the column's corner)."""
+
+    def __init__(self, L: float, d: float, mass: float, h: float, width: float, wall_shift: float = 0.0):
+        self.bench = _load("dam_break")
+        self.validate = _load("validate_dam_break")
+        self.L, self.d, self.mass, self.h = L, d, mass, h
+        # the fluid's boundary, ``wall_shift`` [m] beyond the column's faces (and the tank's far end):
+        # resting particle centres are half a spacing inside these planes
+        self.shift = wall_shift
+        length, width = 5.0 * L + 2.0 * wall_shift, width + 2.0 * wall_shift
+        self.walls = [
+            ((0.0, 0.0, 1.0), 0.0),
+            ((1.0, 0.0, 0.0), 0.0),
+            ((-1.0, 0.0, 0.0), -length),
+            ((0.0, 1.0, 0.0), 0.0),
+            ((0.0, -1.0, 0.0), -width),
+        ]
+        self.rows = []
+        self.potential0 = None
+
+    def record(self, t: float, q: np.ndarray, v: np.ndarray):
+        front = self.validate.surge_front(q.astype(np.float64), self.d)
+        q = q.astype(np.float64) + self.shift
+        v = v.astype(np.float64)
+        potential = self.mass * G * q[:, 2].sum()
+        kinetic = 0.5 * self.mass * float(np.einsum("ij,ij->", v, v))
+        if self.potential0 is None:
+            self.potential0 = potential
+        density = self.bench.measure_density_error(q, self.mass, self.d, self.h, self.walls)
+        self.rows.append(
+            {
+                "t": float(t),
+                "T": float(t / math.sqrt(self.L / (2.0 * G))),
+                "front_over_L": front / self.L,
+                "energy": (kinetic + potential) / self.potential0,
+                "kinetic": kinetic / self.potential0,
+                "mean_abs_density_error": density["mean_abs_density_error_walls"],
+                "mean_compression": density["mean_compression_walls"],
+                "p99_compression": density["p99_compression_walls"],
+                "max_compression": density["max_compression_walls"],
+                "min_wall_distance": float(min(q[:, 0].min(), q[:, 1].min(), q[:, 2].min())) / self.d,
+            }
+        )
+
+
+def run_xpbd(args, L: float, times: np.ndarray) -> dict:
+    import warp as wp  # noqa: PLC0415
+
+    validate = _load("validate_dam_break")
+    wp.config.quiet = True
+    device = wp.get_device(args.device)
+    cfg = argparse.Namespace(
+        substeps=args.substeps,
+        iterations=args.iterations,
+        cohesion=0.0,
+        viscosity=0.0,
+        speed_clamp=0.0,
+        floor_friction=0.0,
+    )
+    model, solver, pipeline, dt = validate.build(args.per_l, args.depth, cfg, device, height=4.0 * L)
+    d = L / args.per_l
+    rec = Recorder(L, d, 1000.0 * d**3, solver.fluid_smoothing_length, args.depth * d)
+    s0, s1 = model.state(), model.state()
+    contacts = pipeline.contacts()
+    rec.record(0.0, s0.particle_q.numpy(), s0.particle_qd.numpy())
+    sim_t, steps, wall = 0.0, 0, 0.0
+    for target in times:
+        t0 = time.perf_counter()
+        while sim_t < target - 0.5 * dt:
+            s0.clear_forces()
+            pipeline.collide(s0, contacts)
+            solver.step(s0, s1, None, contacts, dt)
+            s0, s1 = s1, s0
+            sim_t += dt
+            steps += 1
+        wp.synchronize_device(device)
+        wall += time.perf_counter() - t0
+        rec.record(sim_t, s0.particle_q.numpy(), s0.particle_qd.numpy())
+    return {
+        "solver": "newton-fluid XPBD",
+        "device": device.name if device.is_cuda else "cpu",
+        "particles": int(model.particle_count),
+        "substeps_per_frame": args.substeps,
+        "iterations": args.iterations,
+        "steps": steps,
+        "wall_s": wall,
+        "ms_per_frame": 1000.0 * wall / (sim_t * 60.0),
+        "samples": rec.rows,
+    }
+
+
+def dfsph_scene(L: float, d: float, depth: int, workdir: Path, t_end: float) -> dict:
+    """SPlisHSPlasH scene: the column (0, 0, 0) to (L, depth d, 2L), walls one spacing beyond."""
+    box = workdir / "box.obj"
+    corners = [(x, y, z) for z in (-0.5, 0.5) for y in (-0.5, 0.5) for x in (-0.5, 0.5)]
+    faces = [(1, 3, 4, 2), (5, 6, 8, 7), (1, 2, 6, 5), (3, 7, 8, 4), (1, 5, 7, 3), (2, 4, 8, 6)]
+    lines = [f"v {x} {y} {z}" for x, y, z in corners]
+    lines += [f"f {a} {b} {c}\nf {a} {c} {e}" for a, b, c, e in faces]
+    box.write_text("\n".join(lines) + "\n")
+    width = depth * d
+    lo = np.array([-d, -d, -d])
+    hi = np.array([5.0 * L + d, width + d, 4.0 * L])
+    res = np.maximum(8, np.round((hi - lo) / d).astype(int))
+    return {
+        "Configuration": {
+            "particleRadius": 0.5 * d,
+            "simulationMethod": 4,
+            "gravitation": [0.0, 0.0, -G],
+            "timeStepSize": 0.001,
+            "cflMethod": 1,
+            "cflFactor": 1.0,
+            "cflMaxTimeStepSize": 0.005,
+            "stopAt": float(t_end) + 1.0e-4,
+            "boundaryHandlingMethod": 2,
+            "DFSPH": {
+                "minIterations": 2,
+                "maxIterations": 100,
+                "maxError": 0.05,
+                "maxIterationsV": 100,
+                "maxErrorV": 0.1,
+                "enableDivergenceSolver": True,
+            },
+        },
+        "Materials": [
+            {"id": "Fluid", "density0": 1000, "viscosityMethod": 1, "Standard viscosity": {"viscosity": 0.01}}
+        ],
+        "RigidBodies": [
+            {
+                "geometryFile": str(box),
+                "translation": (0.5 * (lo + hi)).tolist(),
+                "scale": (hi - lo).tolist(),
+                "isDynamic": False,
+                "isWall": True,
+                "mapInvert": True,
+                "mapThickness": 0.0,
+                "mapResolution": res.tolist(),
+            }
+        ],
+        # its regular sampling puts floor((end - start) / d) - 1 particles at start + d, start + 2d, ...:
+        # this is our lattice, centres from d/2 to L - d/2 (the 0.2 d keeps the floor away from rounding)
+        "FluidBlocks": [
+            {
+                "denseMode": 0,
+                "start": [-0.5 * d] * 3,
+                "end": [L + 0.7 * d, width + 0.7 * d, 2.0 * L + 0.7 * d],
+            }
+        ],
+    }
+
+
+def run_dfsph(args, L: float, times: np.ndarray, h: float) -> dict:
+    import pysplishsplash as sph  # noqa: PLC0415
+
+    d = L / args.per_l
+    # the volume map of the walls (a minute to build) is cached there between runs
+    workdir = Path(args.workdir or tempfile.mkdtemp(prefix="dfsph_"))
+    workdir.mkdir(parents=True, exist_ok=True)
+    scene = workdir / "dam_break.json"
+    scene.write_text(json.dumps(dfsph_scene(L, d, args.depth, workdir, float(times[-1])), indent=1))
+    base = sph.Exec.SimulatorBase()
+    base.init(useGui=False, outputDir=str(workdir / "out"), sceneFile=str(scene))
+    base.initSimulation()
+    sim = sph.Simulation.getCurrent()
+    fluid = sim.getFluidModel(0)
+    n = fluid.numActiveParticles()
+    expected = args.per_l * args.depth * 2 * args.per_l
+    if n != expected:
+        raise RuntimeError(f"SPlisHSPlasH sampled {n} particles, not the column's {expected}")
+    mass = fluid.getMass(0)
+    rec = Recorder(L, d, mass, h, args.depth * d, wall_shift=0.5 * d)
+
+    def state():
+        q = np.array([fluid.getPosition(i) for i in range(n)])
+        v = np.array([fluid.getVelocity(i) for i in range(n)])
+        return q, v
+
+    rec.record(0.0, *state())
+    pending = list(times)
+    counters = {"steps": 0, "sampling_s": 0.0}
+
+    def on_step():
+        counters["steps"] += 1
+        t = sph.TimeManager.getCurrent().getTime()
+        while pending and t >= pending[0] - 1.0e-9:
+            t0 = time.perf_counter()
+            rec.record(t, *state())
+            counters["sampling_s"] += time.perf_counter() - t0
+            pending.pop(0)
+
+    base.setTimeStepCB(on_step)
+    t0 = time.perf_counter()
+    base.runSimulation()
+    wall = time.perf_counter() - t0 - counters["sampling_s"]
+    base.cleanup()
+    sim_t = rec.rows[-1]["t"]
+    return {
+        "solver": "SPlisHSPlasH DFSPH (pysplishsplash)",
+        "device": "cpu",
+        "threads": os.cpu_count(),
+        "particles": int(n),
+        "particle_mass_kg": float(mass),
+        "steps": counters["steps"],
+        "mean_dt_s": sim_t / max(1, counters["steps"]),
+        "wall_s": wall,
+        "ms_per_frame": 1000.0 * wall / (sim_t * 60.0),
+        "settings": "DFSPH, maxError 0.05 %, maxErrorV 0.1 %, CFL 1 (dt <= 5 ms), standard viscosity 0.01, "
+        "Bender 2019 volume-map walls",
+        "samples": rec.rows,
+    }
+
+
+def front_errors(run: dict, points: np.ndarray) -> list:
+    by_t = {round(r["T"], 3): r["front_over_L"] for r in run["samples"]}
+    out = []
+    for t_value, z in points:
+        key = min(by_t, key=lambda k: abs(k - t_value))
+        out.append((by_t[key] - z) / z)
+    return out
+
+
+def plot(result: dict, path: str):
+    import matplotlib  # noqa: PLC0415
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt  # noqa: PLC0415
+
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.2))
+    points = np.asarray(result["experiment"]["points"])
+    axes[0].plot(points[:, 0], points[:, 1], "ko", label="Koshizuka & Oka 1996")
+    for run, style in zip(result["runs"], ("C0-", "C3--"), strict=False):
+        s = run["samples"]
+        label = f"{run['solver']} ({run['particles']:,})"
+        keep = [r for r in s if r["T"] <= points[-1, 0] * 1.1]
+        axes[0].plot([r["T"] for r in keep], [r["front_over_L"] for r in keep], style, label=label)
+        axes[1].plot([r["t"] for r in s], [r["energy"] for r in s], style, label=label + " total")
+        axes[1].plot([r["t"] for r in s], [r["kinetic"] for r in s], style, alpha=0.5, label="kinetic")
+        axes[2].semilogy([r["t"] for r in s[1:]], [r["mean_abs_density_error"] for r in s[1:]], style, label="mean |e|")
+        axes[2].semilogy(
+            [r["t"] for r in s[1:]], [r["p99_compression"] for r in s[1:]], style, alpha=0.5, label="p99 c"
+        )
+    axes[0].set(xlabel="T = t sqrt(2g/L)", ylabel="front / L", title="surge front")
+    axes[1].set(xlabel="t [s]", ylabel="energy / initial potential", title="energy")
+    axes[2].set(xlabel="t [s]", ylabel="density error (poly6 estimator)", title="density")
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--per-l", type=int, default=20, help="particles across L")
+    parser.add_argument("--depth", type=int, default=16, help="particle layers in y")
+    parser.add_argument("--t-end", type=float, default=1.5, help="simulated time [s]")
+    parser.add_argument("--substeps", type=int, default=8, help="ours, per 60 Hz frame")
+    parser.add_argument("--iterations", type=int, default=2, help="ours")
+    parser.add_argument("--device", default="cpu", help="ours")
+    parser.add_argument("--skip-dfsph", action="store_true")
+    parser.add_argument("--skip-xpbd", action="store_true")
+    parser.add_argument(
+        "--workdir", default=str(Path.home() / ".cache" / "newton-fluid" / "dfsph"), help="scene + volume-map cache"
+    )
+    parser.add_argument("--json", default=None)
+    parser.add_argument("--plot", default=None)
+    args = parser.parse_args(argv)
+    if not args.skip_dfsph and GL_DISPATCH not in os.environ.get("LD_PRELOAD", "") and os.path.exists(GL_DISPATCH):
+        # pysplishsplash segfaults on import without it
+        os.environ["LD_PRELOAD"] = (GL_DISPATCH + " " + os.environ.get("LD_PRELOAD", "")).strip()
+        os.execv(sys.executable, [sys.executable, *sys.argv])
+
+    validate = _load("validate_dam_break")
+    data = json.loads(validate.DATA.read_text())
+    points = np.asarray(data["points"], dtype=np.float64)
+    L = validate.L
+    times = sample_times(args.t_end, points, L)
+    runs = [] if args.skip_xpbd else [run_xpbd(args, L, times)]
+    h = 1.8 * L / args.per_l
+    if not args.skip_dfsph:
+        runs.append(run_dfsph(args, L, times, h))
+    for run in runs:
+        run["front_relative_error"] = front_errors(run, points)
+    result = {
+        "benchmark": "reference_dfsph",
+        "machine": platform.node(),
+        "cpu": platform.processor() or platform.machine(),
+        "L_m": L,
+        "per_L": args.per_l,
+        "depth_layers": args.depth,
+        "t_end_s": args.t_end,
+        "experiment": {"source": data["source"], "points": points.tolist()},
+        "runs": runs,
+    }
+    print(
+        f"{'solver':<38}{'particles':>10}{'ms/frame':>10}{'front max|err|':>15}{'mean|e|':>9}{'p99 c':>8}{'E(end)':>8}"
+    )
+    for run in runs:
+        s = run["samples"][1:]
+        print(
+            f"{run['solver']:<38}{run['particles']:>10}{run['ms_per_frame']:>10.1f}"
+            f"{100 * max(abs(e) for e in run['front_relative_error']):>14.1f}%"
+            f"{100 * np.mean([r['mean_abs_density_error'] for r in s]):>8.2f}%"
+            f"{100 * np.mean([r['p99_compression'] for r in s]):>7.2f}%{run['samples'][-1]['energy']:>8.3f}"
+        )
+    if args.json:
+        Path(args.json).write_text(json.dumps(result, indent=1))
+    if args.plot:
+        plot(result, args.plot)
+    return result
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

@@ -1,0 +1,251 @@
+# SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
+# SPDX-License-Identifier: Apache-2.0
+
+"""Speed against accuracy: the 2:1 dam break over iterations x substeps and the tolerance mode.
+
+Scene: the column of Koshizuka & Oka (``validate_dam_break.py``; ``--per-l`` particles across L,
+``--depth`` layers: 20 x 16 = 12,800 particles, 40 x 31 = 99,200) in a tank 5L long, no cohesion,
+viscosity or speed clamp, simulated from release to ``--t-end`` (default 1.5 s: collapse, impact on
+the far wall, plunging wave, sloshing). Every run is timed over all its frames but the first
+(kernel compilation; on CUDA each frame is one replayed graph) and its density error is measured
+every ``--sample-every`` frames with the independent estimator of ``reference_dfsph.py``
+(poly6, ghost-lattice walls). Fixed counts: ``--iterations`` x ``--substeps``; tolerance mode: up
+to ``--max-iterations`` XPBD iterations whose density passes stop once the mean compression is
+within each of ``--tolerances`` (``fluid_density_tolerance``).
+
+Prints a table and writes JSON; ``--plot PNG`` draws the chart from one or more JSON files
+(``--inputs``, default: this run) with SPlisHSPlasH's points from ``reference_dfsph.py`` JSON
+(``--reference``).
+
+Usage::
+
+    python benchmarks/speed_accuracy.py --device cpu --json docs/validation/speed_accuracy_12k_cpu.json
+    python benchmarks/speed_accuracy.py --plot docs/images/speed_accuracy.png --inputs a.json b.json --reference ref.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import json
+import platform
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+
+
+def _load(name: str):
+    spec = importlib.util.spec_from_file_location(name, HERE / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def run_one(args, device, substeps: int, iterations: int, tolerance: float) -> dict:
+    import warp as wp  # noqa: PLC0415
+
+    validate = _load("validate_dam_break")
+    reference = _load("reference_dfsph")
+    L = validate.L
+    cfg = argparse.Namespace(
+        substeps=substeps, iterations=iterations, cohesion=0.0, viscosity=0.0, speed_clamp=0.0, floor_friction=0.0
+    )
+    model, solver, pipeline, dt = validate.build(
+        args.per_l,
+        args.depth,
+        cfg,
+        device,
+        height=4.0 * L,
+        fluid_density_tolerance=tolerance,
+    )
+    d = L / args.per_l
+    rec = reference.Recorder(L, d, 1000.0 * d**3, solver.fluid_smoothing_length, args.depth * d)
+    states = [model.state(), model.state()]
+    contacts = pipeline.contacts()
+
+    def simulate():
+        for _ in range(substeps):
+            states[0].clear_forces()
+            pipeline.collide(states[0], contacts)
+            solver.step(states[0], states[1], None, contacts, dt)
+            states[0], states[1] = states[1], states[0]
+
+    frames = int(round(args.t_end * 60.0))
+    with wp.ScopedDevice(device):
+        simulate()  # the first frame compiles (and is not timed)
+        frame = simulate
+        if device.is_cuda:
+            with wp.ScopedCapture() as capture:
+                simulate()
+            frame = lambda: wp.capture_launch(capture.graph)  # noqa: E731
+            start = 2
+        else:
+            start = 1
+        elapsed = 0.0
+        for k in range(start, frames):
+            wp.synchronize_device(device)
+            t0 = time.perf_counter()
+            frame()
+            wp.synchronize_device(device)
+            elapsed += time.perf_counter() - t0
+            if (k + 1) % args.sample_every == 0:
+                rec.record((k + 1) / 60.0, states[0].particle_q.numpy(), states[0].particle_qd.numpy())
+        stats = solver.fluid_diagnostics(states[0])
+    s = rec.rows
+    return {
+        "mode": "tolerance" if tolerance > 0.0 else "fixed",
+        "substeps": substeps,
+        "iterations": iterations,
+        "fluid_density_tolerance": tolerance,
+        # the passes that corrected, over every substep of the run
+        "density_passes_per_substep": (
+            stats["density_subiterations"] / (frames * substeps) if tolerance > 0.0 else iterations
+        ),
+        "ms_per_frame": 1000.0 * elapsed / (frames - start),
+        "mean_abs_density_error": float(np.mean([r["mean_abs_density_error"] for r in s])),
+        "mean_compression": float(np.mean([r["mean_compression"] for r in s])),
+        "p99_compression": float(np.mean([r["p99_compression"] for r in s])),
+        "max_compression": float(np.max([r["max_compression"] for r in s])),
+        "nonfinite_recovered": int(stats["nonfinite_recovered"]),
+        "final_front_over_L": s[-1]["front_over_L"],
+        "final_energy": s[-1]["energy"],
+    }
+
+
+def sweep(args) -> dict:
+    import warp as wp  # noqa: PLC0415
+
+    import newton  # noqa: PLC0415
+
+    wp.config.quiet = True
+    device = wp.get_device(args.device)
+    configs = [(s, i, 0.0) for s in args.substeps for i in args.iterations]
+    configs += [(s, args.max_iterations, tol) for s in args.substeps for tol in args.tolerances]
+    runs = []
+    print(
+        f"{'mode':<10}{'substeps':>9}{'iters':>6}{'tol':>8}{'passes':>8}{'ms/frame':>10}"
+        f"{'mean|e|':>9}{'mean c':>8}{'p99 c':>8}{'max c':>8}"
+    )
+    particles = args.per_l * 2 * args.per_l * args.depth
+    result = {
+        "benchmark": "speed_accuracy",
+        "machine": platform.node(),
+        "cpu": platform.processor() or platform.machine(),
+        "device": device.name if device.is_cuda else "cpu",
+        "warp": wp.config.version,
+        "newton": newton.__version__,
+        "particles": particles,
+        "per_L": args.per_l,
+        "depth_layers": args.depth,
+        "t_end_s": args.t_end,
+        "sample_every_frames": args.sample_every,
+        "scene": "Koshizuka & Oka 2:1 dam break, tank 5L, no cohesion/viscosity/speed clamp, 60 Hz frames",
+        "runs": runs,
+    }
+    for config in configs:
+        r = run_one(args, device, *config)
+        runs.append(r)
+        if args.json:
+            # written after every run, so an interrupted sweep keeps what it measured
+            Path(args.json).write_text(json.dumps(result, indent=1))
+        print(
+            f"{r['mode']:<10}{r['substeps']:>9}{r['iterations']:>6}{r['fluid_density_tolerance']:>8.4f}"
+            f"{r['density_passes_per_substep']:>8.2f}{r['ms_per_frame']:>10.2f}"
+            f"{100 * r['mean_abs_density_error']:>8.2f}%{100 * r['mean_compression']:>7.2f}%"
+            f"{100 * r['p99_compression']:>7.2f}%{100 * r['max_compression']:>7.2f}%",
+            flush=True,
+        )
+    return result
+
+
+def plot(inputs: list, reference: str | None, path: str):
+    import matplotlib  # noqa: PLC0415
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt  # noqa: PLC0415
+
+    results = [json.loads(Path(p).read_text()) for p in inputs]
+    ref = json.loads(Path(reference).read_text()) if reference else None
+    fig, axes = plt.subplots(len(results), 2, figsize=(13, 5 * len(results)), squeeze=False)
+    metrics = (("mean_abs_density_error", "mean |rho/rho0 - 1|"), ("p99_compression", "p99 compression"))
+    for row, result in zip(axes, results, strict=True):
+        title = f"{result['particles']:,} particles, {result['device']}"
+        for ax, (key, label) in zip(row, metrics, strict=True):
+            for n, substeps in enumerate(sorted({r["substeps"] for r in result["runs"]})):
+                color = f"C{n}"
+                for mode, style in (("fixed", "-o"), ("tolerance", "--s")):
+                    rs = [r for r in result["runs"] if r["mode"] == mode and r["substeps"] == substeps]
+                    rs.sort(key=lambda r: r["ms_per_frame"])
+                    if not rs:
+                        continue
+                    name = "iterations" if mode == "fixed" else "tolerance"
+                    ax.plot(
+                        [r["ms_per_frame"] for r in rs],
+                        [r[key] for r in rs],
+                        style,
+                        color=color,
+                        label=f"{substeps} substeps, {name}",
+                        alpha=1.0 if mode == "fixed" else 0.8,
+                    )
+                    for r in rs:
+                        tag = str(r["iterations"]) if mode == "fixed" else f"{100 * r['fluid_density_tolerance']:g}%"
+                        ax.annotate(
+                            tag, (r["ms_per_frame"], r[key]), fontsize=7, xytext=(3, 3), textcoords="offset points"
+                        )
+            if (
+                ref
+                and ref.get("per_L") == result.get("per_L")
+                and ref.get("depth_layers") == result.get("depth_layers")
+            ):
+                for run in ref["runs"]:
+                    if "DFSPH" not in run["solver"]:
+                        continue
+                    s = run["samples"][1:]
+                    value = float(np.mean([r[key] for r in s]))
+                    ax.plot(
+                        run["ms_per_frame"],
+                        value,
+                        "k*",
+                        markersize=12,
+                        label=f"SPlisHSPlasH DFSPH (CPU, {run['threads']} threads)",
+                    )
+            ax.axvline(1000.0 / 60.0, color="gray", linestyle=":", label="real time (60 Hz)")
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            ax.set(xlabel="ms per frame (1/60 s)", ylabel=label, title=f"{label}: {title}")
+            ax.grid(True, which="both", alpha=0.25)
+            ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--per-l", type=int, default=20, help="particles across L")
+    parser.add_argument("--depth", type=int, default=16, help="particle layers in y")
+    parser.add_argument("--t-end", type=float, default=1.5, help="simulated time [s]")
+    parser.add_argument("--sample-every", type=int, default=3, help="frames between density samples")
+    parser.add_argument("--substeps", type=int, nargs="+", default=[2, 4, 8])
+    parser.add_argument("--iterations", type=int, nargs="+", default=[1, 2, 4, 8])
+    parser.add_argument("--tolerances", type=float, nargs="*", default=[0.01, 0.005, 0.0025, 0.001])
+    parser.add_argument("--max-iterations", type=int, default=8, help="XPBD iterations of the tolerance mode")
+    parser.add_argument("--device", default=None)
+    parser.add_argument("--json", default=None)
+    parser.add_argument("--plot", default=None, help="draw the chart here (from --inputs, or this run)")
+    parser.add_argument("--inputs", nargs="*", default=None, help="sweep JSON files to plot instead of running")
+    parser.add_argument("--reference", default=None, help="reference_dfsph.py JSON (SPlisHSPlasH points)")
+    args = parser.parse_args(argv)
+    inputs = args.inputs
+    if not inputs:
+        sweep(args)
+        inputs = [args.json] if args.json else []
+    if args.plot and inputs:
+        plot(inputs, args.reference, args.plot)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

@@ -1,0 +1,265 @@
+# SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
+# SPDX-License-Identifier: Apache-2.0
+
+"""Where the fluid solve is pushed past its limits: it degrades without NaN, loss or silent failure.
+
+Small scenes (CPU always, CUDA when present); the measured boundaries are in docs/validation.md
+(``benchmarks/stability_map.py``).
+"""
+
+import unittest
+import warnings
+
+import numpy as np
+import warp as wp
+from newton.tests.unittest_utils import add_function_test, get_test_devices
+
+import newton
+from newton.tests.test_solver_xpbd_fluid import MASS, D, Sim, add_block
+
+FLUID = int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID)
+TANK = 1.2  # inner edge of the closed tank [m]
+
+
+def closed_tank(builder, edge=TANK, wall=0.2 * D):
+    """Six walls (lid included) ``wall`` [m] thick around the cube [0, edge]^3."""
+    cfg = newton.ModelBuilder.ShapeConfig(mu=0.0)
+    c, hw, t = 0.5 * edge, 0.5 * edge + 2.0 * wall, wall
+    for center, half in (
+        ((c, c, -t), (hw, hw, t)),
+        ((c, c, edge + t), (hw, hw, t)),
+        ((-t, c, c), (t, hw, hw)),
+        ((edge + t, c, c), (t, hw, hw)),
+        ((c, -t, c), (hw, t, hw)),
+        ((c, edge + t, c), (hw, t, hw)),
+    ):
+        builder.add_shape_box(
+            -1, xform=wp.transform(wp.vec3(*center), wp.quat_identity()), hx=half[0], hy=half[1], hz=half[2], cfg=cfg
+        )
+
+
+def thrown_block(device, speed, wall):
+    builder = newton.ModelBuilder()
+    add_block(builder, (5, 5, 5), origin=(0.4, 0.4, 0.6), vel=(0.0, 0.0, -speed), jitter=0.02 * D)
+    closed_tank(builder, wall=wall)
+    model = builder.finalize(device=device)
+    model.soft_contact_mu = 0.0
+    return model
+
+
+def assert_contained(test, q, edge=TANK):
+    test.assertTrue(np.isfinite(q).all())
+    # a centre more than one spacing inside a wall has left the fluid
+    test.assertGreater(q.min(), -D)
+    test.assertLess(q.max(), edge + D)
+
+
+def test_long_substep_is_reported_and_contained(test, device):
+    # 20 m/s against a wall 0.04 m thick with one substep per 1/60 s: 3.3 spacings per substep
+    def run(**kwargs):
+        sim = Sim(thrown_block(device, 20.0, 0.2 * D), substeps=1, fps=60.0, contacts=True, **kwargs)
+        escaped = 0
+        for _ in range(30):
+            sim.step()
+            q = sim.q()
+            test.assertTrue(np.isfinite(q).all())
+            escaped = max(escaped, int(np.count_nonzero(np.any((q < -D) | (q > TANK + D), axis=1))))
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            stats = sim.solver.fluid_diagnostics(sim.state_0)
+        return sim, escaped, stats, caught
+
+    # without a limit the thin floor is crossed, and the diagnostics say why
+    _, escaped, stats, caught = run()
+    test.assertGreater(escaped, 0)
+    test.assertGreater(stats["fast_particle_substeps"], 0)
+    test.assertTrue(any("substep is too long" in str(w.message) for w in caught), [str(w.message) for w in caught])
+    # with fluid_max_displacement=1 nothing leaves, and the slowing is reported
+    sim, escaped, stats, caught = run(fluid_max_displacement=1.0)
+    test.assertEqual(escaped, 0)
+    assert_contained(test, sim.q())
+    test.assertGreater(stats["fast_particle_substeps"], 0)
+    test.assertTrue(any("slowed" in str(w.message) for w in caught))
+    test.assertEqual(stats["nonfinite_recovered"], 0)
+    # the next report only warns about new fast substeps
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        sim.solver.fluid_diagnostics(sim.state_0)
+    test.assertFalse(any("substep is too long" in str(w.message) for w in caught))
+
+
+def test_packed_at_half_spacing_expands_in_tank(test, device):
+    builder = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))
+    add_block(builder, (8, 8, 8), origin=(0.4, 0.4, 0.05), spacing=0.5 * D)
+    closed_tank(builder, wall=2.0 * D)
+    model = builder.finalize(device=device)
+    model.soft_contact_mu = 0.0
+    sim = Sim(model, substeps=8, contacts=True, fluid_viscosity=0.1)
+    extent0 = np.ptp(sim.q(), axis=0)
+    sim.step(90)
+    q = sim.q()
+    assert_contained(test, q)
+    # 8x the rest density at the start: the block spreads to many times its volume and calms down
+    test.assertGreater(np.ptp(q[:, 0]) * np.ptp(q[:, 1]), 4.0 * extent0[0] * extent0[1])
+    test.assertLess(np.sqrt(np.mean(np.sum(sim.qd() ** 2, axis=1))), 1.0)
+    stats = sim.solver.fluid_diagnostics(sim.state_0)
+    test.assertLess(stats["mean_compression"], 0.05)
+
+
+def test_many_coincident_particles_separate_in_tank(test, device):
+    builder = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))
+    for _ in range(200):
+        builder.add_particle(pos=wp.vec3(0.6, 0.6, 0.3), vel=wp.vec3(0.0), mass=MASS, radius=0.5 * D, flags=FLUID)
+    closed_tank(builder, wall=2.0 * D)
+    model = builder.finalize(device=device)
+    model.soft_contact_mu = 0.0
+    sim = Sim(model, substeps=8, contacts=True, fluid_viscosity=0.1)
+    sim.step(60)
+    q = sim.q()
+    assert_contained(test, q)
+    pairs = np.linalg.norm(q[:, None, :] - q[None, :, :], axis=2) + np.eye(len(q))
+    nearest = pairs.min(axis=1)
+    # every particle has left the point, and the cloud has spread to about the rest spacing
+    test.assertGreater(nearest.min(), 0.0)
+    test.assertGreater(np.median(nearest), 0.5 * D)
+    test.assertEqual(sim.solver.fluid_diagnostics(sim.state_0)["nonfinite_recovered"], 0)
+
+
+def test_viscosity_one_moves_as_a_body(test, device):
+    builder = newton.ModelBuilder(gravity=(0.0, 0.0, 0.0))
+    add_block(builder, (5, 5, 5), origin=(0.0, 0.0, 0.0), jitter=0.05 * D)
+    model = builder.finalize(device=device)
+    rng = np.random.default_rng(3)
+    qd = np.tile([0.5, 0.0, 0.0], (model.particle_count, 1)) + rng.normal(0.0, 0.2, (model.particle_count, 3))
+    model.particle_qd.assign(qd.astype(np.float32))
+    sim = Sim(model, substeps=4, fluid_viscosity=1.0)
+    p0 = qd.sum(axis=0)
+    energy0 = 0.5 * np.sum(qd**2)
+    sim.step(30)
+    v = sim.qd()
+    test.assertTrue(np.isfinite(v).all())
+    # the blend is not pairwise, so momentum is kept closely, not exactly (measured: 0.003 m/s of 0.5)
+    np.testing.assert_allclose(v.mean(axis=0), p0 / model.particle_count, atol=0.01)
+    test.assertLess(0.5 * np.sum(v**2), energy0)
+    # relative motion is gone: the block drifts as one
+    test.assertLess(np.std(v, axis=0).max(), 0.02)
+
+
+def test_extreme_mass_ratio_bodies(test, device):
+    builder = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))
+    add_block(builder, (10, 10, 5), origin=(0.05, 0.05, 0.05))
+    cfg = newton.ModelBuilder.ShapeConfig(mu=0.0)
+    builder.add_ground_plane(cfg=cfg)
+    for c, h in (((-0.05, 0.5, 0.5), (0.05, 0.6, 0.5)), ((1.05, 0.5, 0.5), (0.05, 0.6, 0.5))):
+        builder.add_shape_box(
+            -1, xform=wp.transform(wp.vec3(*c), wp.quat_identity()), hx=h[0], hy=h[1], hz=h[2], cfg=cfg
+        )
+    for c, h in (((0.5, -0.05, 0.5), (0.6, 0.05, 0.5)), ((0.5, 1.05, 0.5), (0.6, 0.05, 0.5))):
+        builder.add_shape_box(
+            -1, xform=wp.transform(wp.vec3(*c), wp.quat_identity()), hx=h[0], hy=h[1], hz=h[2], cfg=cfg
+        )
+    bodies = []
+    for x, density in ((0.3, 5.0), (0.7, 20000.0)):  # 1/200 and 20x the water's density
+        b = builder.add_body(xform=wp.transform(wp.vec3(x, 0.5, 0.75), wp.quat_identity()))
+        builder.add_shape_box(b, hx=0.1, hy=0.1, hz=0.1, cfg=newton.ModelBuilder.ShapeConfig(density=density, mu=0.0))
+        bodies.append(b)
+    model = builder.finalize(device=device)
+    model.soft_contact_mu = 0.0
+    sim = Sim(model, substeps=8, contacts=True, fluid_viscosity=0.1)
+    sim.step(90)
+    q = sim.q()
+    test.assertTrue(np.isfinite(q).all())
+    body_q = sim.state_0.body_q.numpy()
+    test.assertTrue(np.isfinite(body_q).all())
+    surface = np.percentile(q[:, 2], 95)
+    test.assertGreater(body_q[bodies[0], 2], surface - 0.05)  # the light box floats at the surface
+    test.assertLess(body_q[bodies[1], 2], 0.2)  # the heavy one is on the floor ...
+    test.assertGreater(body_q[bodies[1], 2], 0.05)  # ... not through it
+    test.assertGreater(q[:, 2].min(), 0.0)
+    test.assertEqual(sim.solver.fluid_diagnostics(sim.state_0)["nonfinite_recovered"], 0)
+
+
+def test_empty_and_inactive_fluid(test, device):
+    # fluid keywords on a model without particles, and fluid particles that are all inactive
+    builder = newton.ModelBuilder()
+    builder.add_body(xform=wp.transform(wp.vec3(0.0, 0.0, 1.0), wp.quat_identity()))
+    model = builder.finalize(device=device)
+    sim = Sim(model, fluid_cohesion=0.5)
+    sim.step(2)
+    test.assertEqual(sim.solver.fluid_diagnostics(sim.state_0), {})
+
+    builder = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))
+    add_block(builder, (3, 3, 3))
+    model = builder.finalize(device=device)
+    model.particle_flags.assign(np.full(model.particle_count, int(newton.ParticleFlags.FLUID), dtype=np.int32))
+    sim = Sim(model)
+    q0 = sim.q()
+    sim.step(5)
+    np.testing.assert_array_equal(sim.q(), q0)
+    stats = sim.solver.fluid_diagnostics(sim.state_0)
+    test.assertEqual(stats["active_particles"], 0)
+    test.assertEqual(stats["mean_abs_density_error"], 0.0)
+
+
+def test_world_without_fluid_is_untouched(test, device):
+    def world(fluid):
+        b = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))
+        if fluid:
+            add_block(b, (4, 4, 4), origin=(0.0, 0.0, 0.5))
+        body = b.add_body(xform=wp.transform(wp.vec3(2.0, 0.0, 1.0), wp.quat_identity()))
+        b.add_shape_sphere(body, radius=0.1)
+        return b
+
+    def run(with_fluid_world):
+        scene = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))
+        if with_fluid_world:
+            scene.add_world(world(True))
+        scene.add_world(world(False))
+        model = scene.finalize(device=device)
+        sim = Sim(model)
+        sim.step(10)
+        return sim.state_0.body_q.numpy()[-1]
+
+    # the body of the world without fluid moves exactly as in a scene without any fluid
+    np.testing.assert_array_equal(run(True), run(False))
+
+
+def test_particle_count_beyond_free_memory(test, device):
+    from newton._src.solvers.xpbd.fluid import solver_fluid  # noqa: PLC0415
+
+    builder = newton.ModelBuilder()
+    add_block(builder, (5, 5, 5))
+    model = builder.finalize(device=device)
+    # the estimate covers what the solver allocates
+    solver = newton.solvers.SolverXPBD(model, fluid_rest_distance=D)
+    fluid = solver._fluid
+    allocated = 0
+    for owner in (fluid, fluid.search):
+        for value in vars(owner).values():
+            if isinstance(value, wp.array):
+                allocated += value.capacity
+    estimate = solver_fluid.fluid_memory_bytes(125, model.particle_count, fluid.search.capacity)
+    test.assertGreater(estimate, 0.8 * allocated)
+    test.assertLess(estimate, 2.0 * allocated)
+    # more than is free: a clear error before anything is allocated
+    saved = solver_fluid.free_memory
+    solver_fluid.free_memory = lambda _device: estimate // 2
+    try:
+        with test.assertRaisesRegex(MemoryError, "fluid solve of 125 particles needs about .* GiB"):
+            newton.solvers.SolverXPBD(model, fluid_rest_distance=D)
+    finally:
+        solver_fluid.free_memory = saved
+    test.assertIsNotNone(solver_fluid.free_memory(wp.get_device(device)))
+
+
+class TestFluidStress(unittest.TestCase):
+    pass
+
+
+devices = get_test_devices()
+for _name, _func in list(globals().items()):
+    if _name.startswith("test_") and callable(_func):
+        add_function_test(TestFluidStress, _name, _func, devices=devices)
+
+if __name__ == "__main__":
+    unittest.main(verbosity=2)
