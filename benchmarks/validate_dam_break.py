@@ -69,7 +69,9 @@ def build(per_l: int, depth_layers: int, args, device, height: float = 2.5 * L, 
         flags=int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID),
     )
     cfg = newton.ModelBuilder.ShapeConfig(mu=0.0)
-    builder.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(mu=args.floor_friction))
+    # XPBD's particle-shape friction is the mean of model.soft_contact_mu (0 below) and the shape's mu:
+    # the floor's 2 f gives the floor friction f, the walls' 0 frictionless walls
+    builder.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(mu=2.0 * args.floor_friction))
     t = 0.05
     width = depth_layers * d
     length = 5.0 * L
@@ -83,7 +85,7 @@ def build(per_l: int, depth_layers: int, args, device, height: float = 2.5 * L, 
             -1, xform=wp.transform(wp.vec3(*center), wp.quat_identity()), hx=half[0], hy=half[1], hz=half[2], cfg=cfg
         )
     model = builder.finalize(device=device)
-    model.soft_contact_mu = args.floor_friction
+    model.soft_contact_mu = 0.0
     dt = 1.0 / (60.0 * args.substeps)
     if args.speed_clamp > 0.0:
         model.particle_max_velocity = args.speed_clamp * 0.5 * d / dt

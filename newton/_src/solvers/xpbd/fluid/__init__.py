@@ -202,6 +202,7 @@ def activate(xpbd_module) -> None:
     def integrate_particles(self, model, state_in, state_out, dt):
         upstream_integrate(self, model, state_in, state_out, dt)
         if self._fluid is not None:
+            self._fluid.limit_prediction(state_in, state_out)
             self._fluid.build_neighborhood(state_out.particle_q)
 
     def _apply_particle_deltas(self, model, state_in, state_out, particle_deltas, dt):
@@ -262,8 +263,8 @@ def activate(xpbd_module) -> None:
     )
     cls.fluid_fast_count = property(
         lambda self: None if self._fluid is None else self._fluid.fast_count,
-        doc="Device counter (``wp.array`` of one int32) of fluid particle substeps that travelled more than "
-        "one rest distance (slowed to ``fluid_max_displacement`` when it is finite).",
+        doc="Device counter (``wp.array`` of one int32) of fluid particle substeps that ended with a velocity "
+        "that carries the particle more than one rest distance in a substep.",
     )
     for name in _FLUID_KWARGS:
         setattr(cls, name, _make_property(name, name in FluidConfig.MUTABLE))
@@ -295,7 +296,8 @@ _FLUID_DOC = """
                 Defaults to ``inf`` (no limit). Particles that travel more than one rest distance in a
                 substep are counted either way (``fluid_fast_count``; :meth:`fluid_diagnostics` warns):
                 past that they can cross a thin wall before its contact is found. 1 prevents it (in
-                closed containers under violent forcing) by slowing such particles, at the cost of their speed.
+                closed containers under violent forcing): each substep's predicted travel is shortened to it
+                (and the velocity by the same factor), at the cost of the fastest particles' speed.
             max_diffuse_particles: Capacity of the ring buffer of diffuse (spray, foam, bubble) particles, >= 0;
                 0 is off (no cost). See ``diffuse_positions`` and the other ``diffuse_*`` attributes.
 """

@@ -578,9 +578,8 @@ def recover_nonfinite_fluid(
 ):
     """Restore non-finite fluid particles to their last finite position at rest, and count them.
 
-    Also counts the particles that would travel more than one rest distance in the next substep
-    (past that a particle can cross a thin wall before its contact is found) and slows them to
-    ``max_displacement / dt`` when that bound is set.
+    Also counts the particles that would travel more than one rest distance in the next substep:
+    past that a particle can cross a thin wall before its contact is found.
     """
     k = wp.tid()
     pi = fluid_particle[k]
@@ -590,16 +589,37 @@ def recover_nonfinite_fluid(
     v = particle_qd[pi]
     if wp.isfinite(x) and wp.isfinite(v):
         last_finite_q[k] = x
-        p = params[0]
-        travel = wp.length(v) * dt
-        if travel > p.rest_distance:
+        if wp.length(v) * dt > params[0].rest_distance:
             wp.atomic_add(fast_count, 0, 1)
-            if travel > p.max_displacement:
-                particle_qd[pi] = v * (p.max_displacement / travel)
     else:
         particle_q[pi] = last_finite_q[k]
         particle_qd[pi] = wp.vec3(0.0)
         wp.atomic_add(nonfinite_count, 0, 1)
+
+
+@wp.kernel
+def limit_fluid_displacement(
+    params: wp.array[FluidParams],
+    fluid_particle: wp.array[wp.int32],
+    particle_flags: wp.array[wp.int32],
+    particle_q_start: wp.array[wp.vec3],
+    # in/out
+    particle_q: wp.array[wp.vec3],
+    particle_qd: wp.array[wp.vec3],
+):
+    """Shorten a fluid particle's predicted travel to ``max_displacement`` (its velocity by the same factor)."""
+    k = wp.tid()
+    pi = fluid_particle[k]
+    if (particle_flags[pi] & ParticleFlags.ACTIVE) == 0:
+        return
+    x0 = particle_q_start[pi]
+    d = particle_q[pi] - x0
+    travel = wp.length(d)
+    limit = params[0].max_displacement
+    if travel > limit:
+        scale = limit / travel
+        particle_q[pi] = x0 + d * scale
+        particle_qd[pi] = particle_qd[pi] * scale
 
 
 @wp.kernel

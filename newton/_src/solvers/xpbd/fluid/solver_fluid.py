@@ -43,6 +43,7 @@ from .kernels import (
     decide_fluid_subiteration,
     gather_fluid_positions,
     gather_fluid_state,
+    limit_fluid_displacement,
     recover_nonfinite_fluid,
 )
 from .neighbors import FluidNeighborSearch
@@ -273,6 +274,7 @@ class FluidSolver:
             # device flags of the optional passes, read by conditional graph nodes
             self._velocity_pass_on = wp.zeros(1, dtype=wp.int32)
             self._vorticity_pass_on = wp.zeros(1, dtype=wp.int32)
+            self._limit_pass_on = wp.zeros(1, dtype=wp.int32)
             self.density = wp.zeros(n, dtype=float)
             self.lambdas = wp.zeros(n, dtype=float)
             self.sorted_v = wp.zeros(n, dtype=wp.vec3)
@@ -361,6 +363,7 @@ class FluidSolver:
         self.params.assign(wp.array([p], dtype=FluidParams, device="cpu"))
         self._velocity_pass_on.fill_(int(c.fluid_viscosity > 0.0 or c.fluid_vorticity > 0.0))
         self._vorticity_pass_on.fill_(int(c.fluid_vorticity > 0.0))
+        self._limit_pass_on.fill_(int(math.isfinite(c.fluid_max_displacement)))
 
     # --- passes inside the upstream step ---------------------------------------------------------
 
@@ -376,6 +379,22 @@ class FluidSolver:
                 f"fluid_density_tolerance={value!r} cannot be set on a solver created without it (and with "
                 "fluid_max_iterations 1): create the solver with fluid_density_tolerance > 0"
             )
+
+    def limit_prediction(self, state_in, state_out) -> None:
+        """Apply ``fluid_max_displacement`` to the predicted positions (a conditional node when captured)."""
+        if self.device.is_capturing:
+            wp.capture_if(self._limit_pass_on, on_true=self._limit_pass, state_in=state_in, state_out=state_out)
+        elif math.isfinite(self.config.fluid_max_displacement):
+            self._limit_pass(state_in, state_out)
+
+    def _limit_pass(self, state_in, state_out) -> None:
+        wp.launch(
+            limit_fluid_displacement,
+            dim=self.fluid_count,
+            inputs=[self.params, self.fluid_particle, self.model.particle_flags, state_in.particle_q],
+            outputs=[state_out.particle_q, state_out.particle_qd],
+            device=self.device,
+        )
 
     def build_neighborhood(self, particle_q: wp.array) -> None:
         m = self.model
