@@ -453,6 +453,18 @@ def test_parameters_change_captured_graph(test, device):
         spread.setdefault(nu, []).append(np.linalg.norm(qd - qd.mean(axis=0), axis=1).mean())
     test.assertLess(spread[0.8][0], 0.5 * spread[0.0][0])
     test.assertAlmostEqual(spread[0.0][0], spread[0.0][1], places=6)
+    # the displacement limit is a conditional pass too: on, then off again, in the same graph
+    sim.solver.fluid_viscosity = 0.0
+    travel = {}
+    for limit in (0.05, float("inf")):
+        sim.solver.fluid_max_displacement = limit
+        sim.state_0.particle_q.assign(model.particle_q)
+        sim.state_0.particle_qd.assign(np.tile([5.0, 0.0, 0.0], (model.particle_count, 1)).astype(np.float32))
+        wp.capture_launch(capture.graph)
+        travel[limit] = float(np.mean(sim.q()[:, 0] - model.particle_q.numpy()[:, 0]))
+    # 4 substeps of 1/240 s at 5 m/s: 0.083 m free, 4 x 0.05 spacings limited
+    test.assertAlmostEqual(travel[float("inf")], 5.0 / 60.0, delta=0.01)
+    test.assertAlmostEqual(travel[0.05], 4 * 0.05 * D, delta=0.002)
     # the same step without a graph agrees with the replay
     eager = Sim(make_model(device, lambda b: add_block(b, (6, 6, 6))), fluid_viscosity=0.8)
     eager.state_0.particle_qd.assign(v)
