@@ -326,10 +326,12 @@ def main(argv=None):
     )
     parser.add_argument("--json", default=None)
     parser.add_argument("--plot", default=None)
+    parser.add_argument("--gl-dispatch", default=GL_DISPATCH, help="libGLdispatch to preload for pysplishsplash")
     args = parser.parse_args(argv)
-    if not args.skip_dfsph and GL_DISPATCH not in os.environ.get("LD_PRELOAD", "") and os.path.exists(GL_DISPATCH):
+    preload = os.environ.get("LD_PRELOAD", "")
+    if not args.skip_dfsph and args.gl_dispatch not in preload and os.path.exists(args.gl_dispatch):
         # pysplishsplash segfaults on import without it
-        os.environ["LD_PRELOAD"] = (GL_DISPATCH + " " + os.environ.get("LD_PRELOAD", "")).strip()
+        os.environ["LD_PRELOAD"] = (args.gl_dispatch + " " + preload).strip()
         os.execv(sys.executable, [sys.executable, *sys.argv])
 
     validate = _load("validate_dam_break")
