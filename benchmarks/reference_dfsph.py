@@ -30,7 +30,6 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import json
 import math
 import os
@@ -42,16 +41,8 @@ from pathlib import Path
 
 import numpy as np
 
-HERE = Path(__file__).resolve().parent
 GL_DISPATCH = "/lib/x86_64-linux-gnu/libGLdispatch.so.0"
 G = 9.81
-
-
-def _load(name: str):
-    spec = importlib.util.spec_from_file_location(name, HERE / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def sample_times(t_end: float, points: np.ndarray, L: float) -> np.ndarray:
@@ -64,8 +55,12 @@ class Recorder:
     """Front, energy and density of one run at the sample times (positions from the column's corner)."""
 
     def __init__(self, L: float, d: float, mass: float, h: float, width: float, wall_shift: float = 0.0):
-        self.bench = _load("dam_break")
-        self.validate = _load("validate_dam_break")
+        # benchmarks/ is on the path of a script run from it
+        import dam_break  # noqa: PLC0415
+        import validate_dam_break  # noqa: PLC0415
+
+        self.bench = dam_break
+        self.validate = validate_dam_break
         self.L, self.d, self.mass, self.h = L, d, mass, h
         # the fluid's boundary, ``wall_shift`` [m] beyond the column's faces (and the tank's far end):
         # resting particle centres are half a spacing inside these planes
@@ -107,9 +102,9 @@ class Recorder:
 
 
 def run_xpbd(args, L: float, times: np.ndarray) -> dict:
+    import validate_dam_break as validate  # noqa: PLC0415
     import warp as wp  # noqa: PLC0415
 
-    validate = _load("validate_dam_break")
     wp.config.quiet = True
     device = wp.get_device(args.device)
     cfg = argparse.Namespace(
@@ -123,31 +118,24 @@ def run_xpbd(args, L: float, times: np.ndarray) -> dict:
     model, solver, pipeline, dt = validate.build(args.per_l, args.depth, cfg, device, height=4.0 * L)
     d = L / args.per_l
     rec = Recorder(L, d, 1000.0 * d**3, solver.fluid_smoothing_length, args.depth * d)
-    s0, s1 = model.state(), model.state()
-    contacts = pipeline.contacts()
-    rec.record(0.0, s0.particle_q.numpy(), s0.particle_qd.numpy())
-    sim_t, steps, wall = 0.0, 0, 0.0
+    stepper = validate.Stepper(model, solver, pipeline, dt)
+    rec.record(0.0, stepper.state.particle_q.numpy(), stepper.state.particle_qd.numpy())
+    wall = 0.0
     for target in times:
         t0 = time.perf_counter()
-        while sim_t < target - 0.5 * dt:
-            s0.clear_forces()
-            pipeline.collide(s0, contacts)
-            solver.step(s0, s1, None, contacts, dt)
-            s0, s1 = s1, s0
-            sim_t += dt
-            steps += 1
+        state = stepper.advance_to(target)
         wp.synchronize_device(device)
         wall += time.perf_counter() - t0
-        rec.record(sim_t, s0.particle_q.numpy(), s0.particle_qd.numpy())
+        rec.record(stepper.time, state.particle_q.numpy(), state.particle_qd.numpy())
     return {
         "solver": "newton-fluid XPBD",
         "device": device.name if device.is_cuda else "cpu",
         "particles": int(model.particle_count),
         "substeps_per_frame": args.substeps,
         "iterations": args.iterations,
-        "steps": steps,
+        "steps": stepper.steps,
         "wall_s": wall,
-        "ms_per_frame": 1000.0 * wall / (sim_t * 60.0),
+        "ms_per_frame": 1000.0 * wall / (stepper.time * 60.0),
         "samples": rec.rows,
     }
 
@@ -334,7 +322,8 @@ def main(argv=None):
         os.environ["LD_PRELOAD"] = (args.gl_dispatch + " " + preload).strip()
         os.execv(sys.executable, [sys.executable, *sys.argv])
 
-    validate = _load("validate_dam_break")
+    import validate_dam_break as validate  # noqa: PLC0415
+
     data = json.loads(validate.DATA.read_text())
     points = np.asarray(data["points"], dtype=np.float64)
     L = validate.L

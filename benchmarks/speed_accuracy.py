@@ -26,7 +26,6 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import json
 import platform
 import sys
@@ -35,21 +34,13 @@ from pathlib import Path
 
 import numpy as np
 
-HERE = Path(__file__).resolve().parent
-
-
-def _load(name: str):
-    spec = importlib.util.spec_from_file_location(name, HERE / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
 
 def run_one(args, device, substeps: int, iterations: int, tolerance: float) -> dict:
+    # benchmarks/ is on the path of a script run from it
+    import reference_dfsph as reference  # noqa: PLC0415
+    import validate_dam_break as validate  # noqa: PLC0415
     import warp as wp  # noqa: PLC0415
 
-    validate = _load("validate_dam_break")
-    reference = _load("reference_dfsph")
     L = validate.L
     cfg = argparse.Namespace(
         substeps=substeps, iterations=iterations, cohesion=0.0, viscosity=0.0, speed_clamp=0.0, floor_friction=0.0

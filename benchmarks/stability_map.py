@@ -30,6 +30,7 @@ import numpy as np
 import warp as wp
 
 import newton
+from newton.examples.fluid.common import add_closed_tank
 
 FLUID = int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID)
 
@@ -54,20 +55,7 @@ def build(args, speed: float, device):
         radius_mean=0.5 * d,
         flags=FLUID,
     )
-    cfg = newton.ModelBuilder.ShapeConfig(mu=0.0)
-    t = 2.0 * d  # wall thickness
-    c, hw = 0.5 * tank, 0.5 * tank + 2.0 * t
-    for center, half in (
-        ((c, c, -t), (hw, hw, t)),
-        ((c, c, tank + t), (hw, hw, t)),
-        ((-t, c, c), (t, hw, hw)),
-        ((tank + t, c, c), (t, hw, hw)),
-        ((c, -t, c), (hw, t, hw)),
-        ((c, tank + t, c), (hw, t, hw)),
-    ):
-        builder.add_shape_box(
-            -1, xform=wp.transform(wp.vec3(*center), wp.quat_identity()), hx=half[0], hy=half[1], hz=half[2], cfg=cfg
-        )
+    add_closed_tank(builder, tank, thickness=4.0 * d)
     model = builder.finalize(device=device)
     model.soft_contact_mu = 0.0
     return model, tank

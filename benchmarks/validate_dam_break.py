@@ -101,26 +101,35 @@ def build(per_l: int, depth_layers: int, args, device, height: float = 2.5 * L, 
     return model, solver, pipeline, dt
 
 
+class Stepper:
+    """The two states and the contacts of a scene from :func:`build`, stepped forward to given times."""
+
+    def __init__(self, model, solver, pipeline, dt: float):
+        self.solver, self.pipeline, self.dt = solver, pipeline, dt
+        self.state, self._next = model.state(), model.state()
+        self.contacts = pipeline.contacts()
+        self.time, self.steps = 0.0, 0
+
+    def advance_to(self, t: float):
+        """Step until the simulated time is within half a substep of ``t`` [s]; return the current state."""
+        while self.time < t - 0.5 * self.dt:
+            self.state.clear_forces()
+            self.pipeline.collide(self.state, self.contacts)
+            self.solver.step(self.state, self._next, None, self.contacts, self.dt)
+            self.state, self._next = self._next, self.state
+            self.time += self.dt
+            self.steps += 1
+        return self.state
+
+
 def run(per_l: int, args, points: np.ndarray, device) -> dict:
     d = L / per_l
     model, solver, pipeline, dt = build(per_l, args.depth, args, device)
-    s0, s1 = model.state(), model.state()
-    contacts = pipeline.contacts()
+    stepper = Stepper(model, solver, pipeline, dt)
     t_scale = math.sqrt(L / (2.0 * G))  # t = T * t_scale
     times = points[:, 0] * t_scale
-    fronts = []
-    step, sim_t = 0, 0.0
-    for target in times:
-        while sim_t < target - 0.5 * dt:
-            s0.clear_forces()
-            pipeline.collide(s0, contacts)
-            solver.step(s0, s1, None, contacts, dt)
-            s0, s1 = s1, s0
-            sim_t += dt
-            step += 1
-        fronts.append(surge_front(s0.particle_q.numpy(), d) / L)
-    fronts = np.asarray(fronts)
-    stats = solver.fluid_diagnostics(s0)
+    fronts = np.asarray([surge_front(stepper.advance_to(t).particle_q.numpy(), d) / L for t in times])
+    stats = solver.fluid_diagnostics(stepper.state)
     error = (fronts - points[:, 1]) / points[:, 1]
     return {
         "particles_per_L": per_l,

@@ -15,33 +15,17 @@ import warp as wp
 from newton.tests.unittest_utils import add_function_test, get_test_devices
 
 import newton
+from newton.examples.fluid.common import add_closed_tank
 from newton.tests.test_solver_xpbd_fluid import MASS, D, Sim, add_block
 
 FLUID = int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID)
 TANK = 1.2  # inner edge of the closed tank [m]
 
 
-def closed_tank(builder, edge=TANK, wall=0.2 * D):
-    """Six walls (lid included) ``wall`` [m] thick around the cube [0, edge]^3."""
-    cfg = newton.ModelBuilder.ShapeConfig(mu=0.0)
-    c, hw, t = 0.5 * edge, 0.5 * edge + 2.0 * wall, wall
-    for center, half in (
-        ((c, c, -t), (hw, hw, t)),
-        ((c, c, edge + t), (hw, hw, t)),
-        ((-t, c, c), (t, hw, hw)),
-        ((edge + t, c, c), (t, hw, hw)),
-        ((c, -t, c), (hw, t, hw)),
-        ((c, edge + t, c), (hw, t, hw)),
-    ):
-        builder.add_shape_box(
-            -1, xform=wp.transform(wp.vec3(*center), wp.quat_identity()), hx=half[0], hy=half[1], hz=half[2], cfg=cfg
-        )
-
-
-def thrown_block(device, speed, wall):
+def thrown_block(device, speed, wall_thickness):
     builder = newton.ModelBuilder()
     add_block(builder, (5, 5, 5), origin=(0.4, 0.4, 0.6), vel=(0.0, 0.0, -speed), jitter=0.02 * D)
-    closed_tank(builder, wall=wall)
+    add_closed_tank(builder, TANK, thickness=wall_thickness)
     model = builder.finalize(device=device)
     model.soft_contact_mu = 0.0
     return model
@@ -57,7 +41,7 @@ def assert_contained(test, q, edge=TANK):
 def test_long_substep_is_reported_and_contained(test, device):
     # 20 m/s against a wall 0.04 m thick with one substep per 1/60 s: 3.3 spacings per substep
     def run(**kwargs):
-        sim = Sim(thrown_block(device, 20.0, 0.2 * D), substeps=1, fps=60.0, contacts=True, **kwargs)
+        sim = Sim(thrown_block(device, 20.0, 0.4 * D), substeps=1, fps=60.0, contacts=True, **kwargs)
         escaped = 0
         for _ in range(30):
             sim.step()
@@ -91,7 +75,7 @@ def test_long_substep_is_reported_and_contained(test, device):
 def test_packed_at_half_spacing_expands_in_tank(test, device):
     builder = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))
     add_block(builder, (8, 8, 8), origin=(0.4, 0.4, 0.05), spacing=0.5 * D)
-    closed_tank(builder, wall=2.0 * D)
+    add_closed_tank(builder, TANK, thickness=4.0 * D)
     model = builder.finalize(device=device)
     model.soft_contact_mu = 0.0
     sim = Sim(model, substeps=8, contacts=True, fluid_viscosity=0.1)
@@ -110,7 +94,7 @@ def test_many_coincident_particles_separate_in_tank(test, device):
     builder = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))
     for _ in range(200):
         builder.add_particle(pos=wp.vec3(0.6, 0.6, 0.3), vel=wp.vec3(0.0), mass=MASS, radius=0.5 * D, flags=FLUID)
-    closed_tank(builder, wall=2.0 * D)
+    add_closed_tank(builder, TANK, thickness=4.0 * D)
     model = builder.finalize(device=device)
     model.soft_contact_mu = 0.0
     sim = Sim(model, substeps=8, contacts=True, fluid_viscosity=0.1)

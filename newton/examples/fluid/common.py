@@ -41,6 +41,23 @@ def add_tank(
         builder.add_shape_box(-1, xform=xform, hx=half[0], hy=half[1], hz=half[2], cfg=cfg)
 
 
+def add_closed_tank(builder: newton.ModelBuilder, edge: float, thickness: float) -> None:
+    """Six frictionless walls, lid included, ``thickness`` [m] thick around the cube ``[0, edge]^3`` [m]."""
+    cfg = newton.ModelBuilder.ShapeConfig(mu=0.0)
+    t = 0.5 * thickness
+    c, hw = 0.5 * edge, 0.5 * edge + thickness
+    for center, half in (
+        ((c, c, -t), (hw, hw, t)),
+        ((c, c, edge + t), (hw, hw, t)),
+        ((-t, c, c), (t, hw, hw)),
+        ((edge + t, c, c), (t, hw, hw)),
+        ((c, -t, c), (hw, t, hw)),
+        ((c, edge + t, c), (hw, t, hw)),
+    ):
+        xform = wp.transform(wp.vec3(*center), wp.quat_identity())
+        builder.add_shape_box(-1, xform=xform, hx=half[0], hy=half[1], hz=half[2], cfg=cfg)
+
+
 class FluidExample:
     """Frame loop of a fluid example: ``sim_substeps`` collision + XPBD substeps per frame at ``fps``.
 

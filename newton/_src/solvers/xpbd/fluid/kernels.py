@@ -442,6 +442,17 @@ def begin_fluid_subiterations(loop_active: wp.array[wp.int32], loop_count: wp.ar
     loop_count[0] = 0
 
 
+@wp.func
+def summed_compression(bins: wp.array[float]):
+    """Total compression and particle count of the compression bins (see :func:`compute_fluid_density_lambda`)."""
+    total = float(0.0)
+    count = float(0.0)
+    for b in range(COMPRESSION_BINS):
+        total += bins[b]
+        count += bins[COMPRESSION_BINS + b]
+    return wp.vec2(total, count)
+
+
 @wp.kernel
 def decide_fluid_subiteration(
     params: wp.array[FluidParams],
@@ -460,11 +471,9 @@ def decide_fluid_subiteration(
         if loop_count[0] >= max_iterations:
             loop_active[0] = 0
         return
-    total = float(0.0)
-    count = float(0.0)
-    for b in range(COMPRESSION_BINS):
-        total += bins[b]
-        count += bins[COMPRESSION_BINS + b]
+    sums = summed_compression(bins)
+    total = sums[0]
+    count = sums[1]
     if count == 0.0 or total <= params[0].density_tolerance * count:
         loop_active[0] = 0
         return
@@ -475,26 +484,23 @@ def decide_fluid_subiteration(
 @wp.kernel
 def decide_fluid_density_converged(
     params: wp.array[FluidParams],
-    bins: wp.array[float],
     # in/out
+    bins: wp.array[float],
     active: wp.array[wp.int32],
-    bins_out: wp.array[float],
     iterations_total: wp.array[wp.int32],
 ):
     """Skip this and the substep's remaining density passes once the mean compression is within the tolerance.
 
-    Reads and clears the compression sums of this pass's evaluation (``bins`` and ``bins_out`` are
-    the same array); counts the passes that go on to correct.
+    Reads and clears the compression sums of this pass's evaluation; counts the passes that go on
+    to correct.
     """
     if active[0] == 0:
         return
-    total = float(0.0)
-    count = float(0.0)
-    for b in range(COMPRESSION_BINS):
-        total += bins[b]
-        count += bins[COMPRESSION_BINS + b]
-        bins_out[b] = 0.0
-        bins_out[COMPRESSION_BINS + b] = 0.0
+    sums = summed_compression(bins)
+    total = sums[0]
+    count = sums[1]
+    for b in range(2 * COMPRESSION_BINS):
+        bins[b] = 0.0
     tolerance = params[0].density_tolerance
     if count == 0.0 or (tolerance > 0.0 and total <= tolerance * count):
         active[0] = 0

@@ -429,12 +429,11 @@ class FluidSolver:
         if self.config.fluid_max_iterations == 1:
             self._evaluate_constraint(active, track_compression=self.iteration_tolerance)
             if self.iteration_tolerance:
-                bins = self._compression_bins
                 wp.launch(
                     decide_fluid_density_converged,
                     dim=1,
-                    inputs=[self.params, bins],
-                    outputs=[active, bins, self.subiterations_total],
+                    inputs=[self.params],
+                    outputs=[self._compression_bins, active, self.subiterations_total],
                     device=self.device,
                 )
             self._correct(particle_deltas, active, keep_walls=False)
