@@ -128,9 +128,10 @@ def fluid_diagnostics(self, state) -> dict:
         ``neighbors_mean``, ``neighbors_max``, ``neighbor_overflow`` (particles with more neighbours
         than are stored), ``candidates_mean`` (particles examined per neighbourhood search) and
         ``nonfinite_recovered`` (total count of recovered non-finite particles),
-        ``density_subiterations`` (total density passes that corrected, with ``fluid_max_iterations`` > 1),
-        ``fast_particle_substeps`` (particle substeps that travelled more than one rest distance; a
-        ``RuntimeWarning`` says when it grew since the last call).
+        ``density_subiterations`` (total density passes that corrected, with ``fluid_max_iterations`` > 1
+        or a ``fluid_density_tolerance`` set at construction),
+        ``fast_particle_substeps`` (particle substeps that ended with a velocity carrying the particle more
+        than one rest distance in a substep; a ``RuntimeWarning`` says when it grew since the last call).
         Empty for a model without fluid.
     """
     if self._fluid is None:

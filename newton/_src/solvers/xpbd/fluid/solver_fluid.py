@@ -407,7 +407,8 @@ class FluidSolver:
     def solve_density(self, particle_q: wp.array, particle_deltas: wp.array) -> None:
         """The density constraint of one XPBD iteration: add its correction to ``particle_deltas``.
 
-        With ``fluid_max_iterations`` 1 this is one Jacobi pass. Otherwise up to that many passes
+        With ``fluid_max_iterations`` 1 this is one Jacobi pass (with a tolerance set at construction,
+        skipped once the substep's mean compression has met it). Otherwise up to that many passes
         run on the gathered positions, each starting where the last one left them, and stop early
         once the mean compression is at most ``fluid_density_tolerance`` (if above 0). The count is
         decided on the device: inside a graph capture the loop is a conditional while node, outside
@@ -666,7 +667,7 @@ class FluidSolver:
     # --- diagnostics -------------------------------------------------------------------------------
 
     def _report_fast_particles(self) -> int:
-        """Particle substeps that travelled more than one rest distance; warns when they grew since the last report."""
+        """Particle substeps that ended faster than one rest distance per substep; warns when they grew since last."""
         count = int(self.fast_count.numpy()[0])
         if count > self._fast_reported:
             limit = self.config.fluid_max_displacement
