@@ -31,7 +31,7 @@ for what in "$@"; do
       for res in "1920 1080" "1280 720"; do
         read -r w h <<< "$res"
         PYGLET_HEADLESS=1 python3 benchmarks/render_fluid.py --width "$w" --height "$h" --png "$out/render_100k_${w}x${h}.png" \
-          --json "$out/render_100k_${w}x${h}.json" 2>&1 | grep -v '^Module' | tail -14
+          --json "$out/render_100k_${w}x${h}.json" 2>&1 | grep -v '^Module' | tail -32
       done ;;
     accuracy)
       # the speed-accuracy sweep of docs/validation.md at 99,200 particles (Koshizuka & Oka column, 40 per L x 31)
@@ -60,8 +60,9 @@ for what in "$@"; do
         (cd "$out" && tar rf gallery.tar "$name.png" "$name.mp4.json" && rm -f "$name.png" "$name.mp4.json")
       done ;;
     gltests)
-      # the image tests on NVIDIA's GL (the resize test needs Xvfb, which GPU machines lack)
-      python3 -m pytest -q newton/tests/test_fluid_render_gl.py -k "not resize" 2>&1 | tail -15 ;;
+      # the image tests on NVIDIA's GL (the resize test needs Xvfb, which GPU machines lack); the
+      # CUDA variant of the compute/raster comparison goes through CUDA-GL shared buffers there
+      python3 -m pytest -q -rs newton/tests/test_fluid_render_gl.py -k "not resize" 2>&1 | tail -15 ;;
     tests)
       python3 -m pytest -q -k cuda newton/tests/test_solver_xpbd_fluid.py newton/tests/test_fluid_examples.py \
         newton/tests/test_fluid_extension.py newton/tests/test_fluid_diffuse.py newton/tests/test_fluid_render_particles.py \

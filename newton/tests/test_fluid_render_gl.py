@@ -5,7 +5,9 @@
 
 Runs headless through EGL (Mesa's llvmpipe on machines without a GPU; see README for the
 packages); the resize test runs under Xvfb because an EGL pbuffer cannot be resized. Frames are
-small so that software rasterisation stays quick. The viewer draws on the CPU device.
+small so that software rasterisation stays quick. The viewer draws on the CPU device. The image
+tests run twice: with the GLSL passes ("raster") and with the Warp kernels ("compute") for the
+depth, thickness and smoothing passes.
 """
 
 import ast
@@ -18,7 +20,7 @@ import unittest
 import newton.viewer
 import numpy as np
 import warp as wp
-from newton.tests.unittest_utils import add_function_test
+from newton.tests.unittest_utils import add_function_test, get_test_devices
 from scipy.ndimage import binary_dilation, binary_erosion
 
 import newton
@@ -48,8 +50,12 @@ def ball(radius, center):
 class Scene:
     """A small ViewerGL with optional static boxes, for one test."""
 
+    # where the fluid passes run in the tests that follow (set per test, see _in_mode)
+    splatting = "raster"
+
     def __init__(self, boxes=(), ground=False, sky=True, size=(W, H)):
         self.viewer = newton.viewer.ViewerGL(width=size[0], height=size[1], headless=True)
+        self.viewer.fluid_renderer.splatting = Scene.splatting
         builder = newton.ModelBuilder()
         if ground:
             builder.add_ground_plane()
@@ -73,6 +79,8 @@ class Scene:
             self.viewer.end_frame()
         image = self.viewer.get_frame().numpy().astype(np.float64)
         fluid = self.viewer.fluid_renderer
+        if fluid.visible_batches():
+            assert fluid.last_splatting == Scene.splatting, (fluid.last_splatting, Scene.splatting)
         depth = fluid.read_texture("depth") if fluid._targets is not None else None
         return image, depth
 
@@ -366,6 +374,7 @@ def test_render_does_not_change_simulation(test, device):
         viewer = None
         if render:
             viewer = newton.viewer.ViewerGL(width=128, height=96, headless=True)
+            viewer.fluid_renderer.splatting = Scene.splatting
             viewer.set_model(model)
         for _ in range(6):
             for _ in range(2):
@@ -430,6 +439,7 @@ RESIZE_SCRIPT = textwrap.dedent(
     """
     import numpy as np, warp as wp, newton, newton.viewer
     v = newton.viewer.ViewerGL(width=200, height=150)  # a real (Xvfb) window: its events drive the resize
+    v.fluid_renderer.splatting = SPLATTING
     v.set_model(newton.ModelBuilder().finalize(device="cpu"))
     v.set_camera(wp.vec3(0.0, -0.8, 0.5), pitch=-30.0, yaw=90.0)
     g = np.stack(np.meshgrid(*[np.arange(8)] * 3, indexing="ij"), -1).reshape(-1, 3) * 0.02 - 0.07
@@ -441,6 +451,7 @@ RESIZE_SCRIPT = textwrap.dedent(
     v.renderer.window.set_size(320, 240)
     for _ in range(3):
         b, db = frame()
+    assert v.fluid_renderer.last_splatting == SPLATTING, v.fluid_renderer.last_splatting
     print("SIZES", repr((a.shape, da.shape, b.shape, db.shape, int((da[..., 0] > 0).sum()), int((db[..., 0] > 0).sum()))))
     v.close()
     """
@@ -449,7 +460,8 @@ RESIZE_SCRIPT = textwrap.dedent(
 
 def test_resize_keeps_working(test, device):
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "PYGLET_HEADLESS")}
-    cmd = ["xvfb-run", "-a", "-s", "-screen 0 800x600x24", sys.executable, "-c", RESIZE_SCRIPT]
+    script = RESIZE_SCRIPT.replace("SPLATTING", repr(Scene.splatting))
+    cmd = ["xvfb-run", "-a", "-s", "-screen 0 800x600x24", sys.executable, "-c", script]
     out = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=600)
     test.assertEqual(out.returncode, 0, out.stderr[-3000:])
     line = next(x for x in out.stdout.splitlines() if x.startswith("SIZES"))
@@ -495,14 +507,111 @@ def test_viewer_picks_fluid_particles(test, device):
     test.assertGreater(state.particle_f.numpy()[top, 0], 0.0)
 
 
+def test_compute_passes_match_raster(test, device):
+    """The Warp passes draw what the GLSL passes draw: coverage, depth, batch, thickness, final image."""
+    scene = Scene(boxes=(((0.05, -0.3, 0.3), (0.05, 0.05, 0.05)),))
+    try:
+        scene.viewer.set_camera(wp.vec3(0.0, -1.2, 0.45), pitch=-7.0, yaw=90.0)
+        batches = []
+        for name, radius, center, color in (
+            ("/big", 0.16, (0.0, 0.0, 0.3), (0.2, 0.45, 0.9, 1.0)),
+            ("/small", 0.08, (0.2, -0.1, 0.3), (0.9, 0.2, 0.1, 1.0)),
+        ):
+            positions = wp.array(ball(radius, np.asarray(center)), dtype=wp.vec3, device=device)
+            batches.append((name, positions, {"radii": R, "color": color}))
+        fluid = scene.viewer.fluid_renderer
+        frames = {}
+        for mode in ("raster", "compute"):
+            fluid.splatting = mode
+            for _ in range(2):
+                scene.viewer.begin_frame(0.0)
+                scene.viewer.log_state(scene.state)
+                for name, positions, kwargs in batches:
+                    scene.viewer.log_fluid(name, positions, **kwargs)
+                scene.viewer.end_frame()
+            test.assertEqual(fluid.last_splatting, mode)
+            frames[mode] = (
+                scene.viewer.get_frame().numpy().astype(np.float64),
+                fluid.read_texture("depth"),
+                fluid.read_texture("optical"),
+            )
+        (image_r, depth_r, optical_r), (image_c, depth_c, optical_c) = frames["raster"], frames["compute"]
+        covered_r, covered_c = depth_r[..., 0] > 0.0, depth_c[..., 0] > 0.0
+        test.assertGreater(covered_r.sum(), 0.05 * W * H)
+        test.assertLessEqual(int((covered_r ^ covered_c).sum()), 2, "pixels covered by one path only")
+        both = covered_r & covered_c
+        test.assertLess(np.abs(depth_r[..., 0] - depth_c[..., 0])[both].max(), 1.0e-4)
+        test.assertEqual(int((depth_r[..., 1] != depth_c[..., 1])[both].sum()), 0, "batch index differs")
+        test.assertEqual(set(np.unique(depth_c[..., 1][covered_c])), {0.0, 1.0})
+        # thickness: the raster path sums in half floats, and which full-resolution scene depth sample a
+        # half-resolution pixel is tested against along the box's outline is the driver's choice
+        off = np.abs(optical_r - optical_c).max(axis=-1) > 0.03 * optical_r.max()
+        test.assertLess(off.mean(), 0.01, f"{int(off.sum())} half-resolution pixels differ in thickness")
+        test.assertLess(np.abs(optical_r - optical_c).mean(), 0.002 * optical_r.max())
+        # the final image: equal up to rounding but for those outline pixels
+        diff = np.abs(image_r - image_c).max(axis=-1)
+        test.assertLess(diff.mean(), 0.1)
+        test.assertLess((diff > 2.0).mean(), 0.01, f"{int((diff > 2.0).sum())} pixels differ by more than 2 levels")
+    finally:
+        scene.close()
+
+
+def test_splatting_mode(test, device):
+    scene = Scene()
+    try:
+        fluid = scene.viewer.fluid_renderer
+        with test.assertRaisesRegex(ValueError, "splatting='gpu'"):
+            fluid.splatting = "gpu"
+        fluid.splatting = "auto"
+        scene.viewer.begin_frame(0.0)
+        scene.viewer.log_fluid(
+            "/f", wp.array(lattice((4, 4, 4), (-0.03, -0.03, 0.0)), dtype=wp.vec3, device="cpu"), radii=R
+        )
+        scene.viewer.end_frame()
+        # CPU arrays: auto draws with the raster passes
+        test.assertEqual(fluid.last_splatting, "raster")
+    finally:
+        scene.close()
+
+
+def _in_mode(func, mode):
+    def run(test, device):
+        previous = Scene.splatting
+        Scene.splatting = mode
+        try:
+            func(test, device)
+        finally:
+            Scene.splatting = previous
+
+    return run
+
+
 class TestFluidRenderGL(unittest.TestCase):
     pass
 
 
+# tests whose pictures come from the depth, thickness and smoothing passes run with both implementations
+_BOTH_MODES = {
+    "test_flat_pool_depth_and_holes",
+    "test_sphere_silhouette_iou",
+    "test_box_in_front_occludes_fluid",
+    "test_beer_lambert_transmission",
+    "test_two_batches_materials_and_mutual_occlusion",
+    "test_counts_change_and_removal",
+    "test_diffuse_hook_sees_fluid_depth",
+    "test_diffuse_sprites",
+    "test_render_does_not_change_simulation",
+    "test_resize_keeps_working",
+}
+_ALL_DEVICES = {"test_compute_passes_match_raster"}
+
 for _name, _func in list(globals().items()):
     if _name.startswith("test_") and callable(_func):
-        add_function_test(TestFluidRenderGL, _name, _func, devices=[wp.get_device("cpu")])
-del _name, _func
+        _devices = get_test_devices() if _name in _ALL_DEVICES else [wp.get_device("cpu")]
+        add_function_test(TestFluidRenderGL, _name, _func, devices=_devices)
+        if _name in _BOTH_MODES:
+            add_function_test(TestFluidRenderGL, f"{_name}_compute", _in_mode(_func, "compute"), devices=_devices)
+del _name, _func, _devices
 
 if __name__ == "__main__":
     unittest.main(verbosity=2)

@@ -32,6 +32,7 @@ _CLASS_NAMES = {
 _RENDERER_NAMES = (
     "_frame_fbo",
     "_frame_texture",
+    "_frame_depth_texture",
     "_frame_shader",
     "_frame_vao",
     "_frame_indices",

@@ -28,12 +28,12 @@ import numpy as np
 import warp as wp
 
 from . import shaders
+from .splat import FluidSplatter
 
-# pixel budget of one filter tap line; wider blurs skip texels
-MAX_FILTER_RADIUS_PX = 32
-# splats for the thickness pass are this much larger than the drawn ellipsoids, which fills the
-# gaps between particles so that a body of fluid reads as one slab
-THICKNESS_SPLAT_SCALE = 1.5
+# where passes 1-3 run: "raster" = the GLSL passes, "compute" = Warp kernels (splat.py),
+# "auto" = compute when every batch is on one CUDA device shared with the GL context
+SPLATTING_MODES = ("auto", "raster", "compute")
+
 # when no absorption is given: the colour is what this thickness [m] of fluid transmits
 COLOR_REFERENCE_THICKNESS = 0.1
 
@@ -140,6 +140,8 @@ class FluidBatchGL:
     vec4_per_instance: int = 4
     packed: wp.array | None = None
     registered: object = None
+    # the GL instance buffer holds the latest packed data (only the raster passes read it)
+    uploaded: bool = False
     extra: dict = field(default_factory=dict)
 
 
@@ -157,8 +159,31 @@ class FluidRendererGL:
         self._quad_vbo = None
         self._empty_vao = None
         self._cuda_interop = True
+        self._splatting = "auto"
+        self._splatter = None
+        # the scene depth texture the passes of this frame read (see render)
+        self._scene_depth = 0
         self.last_timings_ms: dict[str, float] = {}
+        self.last_splatting = None
         self.measure_timings = False
+
+    @property
+    def splatting(self) -> str:
+        """Where the depth, thickness and smoothing passes run: ``"auto"`` (default), ``"raster"`` or ``"compute"``.
+
+        ``"raster"`` draws them with GLSL shaders; ``"compute"`` runs the same passes as Warp kernels on the
+        batches' device and copies the results into the textures the shading pass reads (through CUDA-GL
+        shared buffers when the GL context is on that GPU, through the host otherwise); ``"auto"`` picks
+        compute when every visible batch is on one CUDA device shared with the GL context, raster
+        otherwise. Both give the same image up to rounding (tested).
+        """
+        return self._splatting
+
+    @splatting.setter
+    def splatting(self, value: str) -> None:
+        if value not in SPLATTING_MODES:
+            raise ValueError(f"splatting={value!r}: expected one of {', '.join(map(repr, SPLATTING_MODES))}")
+        self._splatting = value
 
     # ------------------------------------------------------------------ batches
     def set_batch(self, name, positions, radii, material, anisotropy, hidden):
@@ -198,7 +223,8 @@ class FluidRendererGL:
             outputs=[batch.packed],
             device=device,
         )
-        self._upload(gl, batch, n)
+        # uploaded when a raster pass needs it: the compute passes read the packed array itself
+        batch.uploaded = False
 
     def set_diffuse_batch(self, name, positions, velocities, lifetimes, kinds, radius, material, hidden):
         gl = self.renderer.gl
@@ -285,6 +311,7 @@ class FluidRendererGL:
         batch.packed = None
 
     def _upload(self, gl, batch, n):
+        batch.uploaded = True
         packed = batch.packed
         if packed.device.is_cuda and self._cuda_interop:
             try:
@@ -321,6 +348,7 @@ class FluidRendererGL:
             "optical_filter": program(shaders.FULLSCREEN_VERTEX, shaders.OPTICAL_FILTER_FRAGMENT),
             "shade": program(shaders.FULLSCREEN_VERTEX, shaders.SHADE_FRAGMENT),
             "diffuse": program(shaders.DIFFUSE_VERTEX, shaders.DIFFUSE_FRAGMENT),
+            "depth_copy": program(shaders.FULLSCREEN_VERTEX, shaders.DEPTH_COPY_FRAGMENT),
         }
         quad = np.array([-1.0, -1.0, 1.0, -1.0, -1.0, 1.0, 1.0, 1.0], dtype=np.float32)
         ids = (gl.GLuint * 1)()
@@ -336,53 +364,58 @@ class FluidRendererGL:
         if self._targets is not None and self.size == (width, height):
             return
         self._release_targets(gl)
-
-        half = _half_size(width, height)
-
-        def texture(internal, fmt, kind, size=(width, height), filtering=gl.GL_NEAREST):
-            ids = (gl.GLuint * 1)()
-            gl.glGenTextures(1, ids)
-            gl.glBindTexture(gl.GL_TEXTURE_2D, ids[0])
-            gl.glTexImage2D(gl.GL_TEXTURE_2D, 0, internal, size[0], size[1], 0, fmt, kind, None)
-            gl.glTexParameteri(gl.GL_TEXTURE_2D, gl.GL_TEXTURE_MIN_FILTER, filtering)
-            gl.glTexParameteri(gl.GL_TEXTURE_2D, gl.GL_TEXTURE_MAG_FILTER, filtering)
-            gl.glTexParameteri(gl.GL_TEXTURE_2D, gl.GL_TEXTURE_WRAP_S, gl.GL_CLAMP_TO_EDGE)
-            gl.glTexParameteri(gl.GL_TEXTURE_2D, gl.GL_TEXTURE_WRAP_T, gl.GL_CLAMP_TO_EDGE)
-            return int(ids[0])
-
-        def framebuffer(color, depth=None):
-            ids = (gl.GLuint * 1)()
-            gl.glGenFramebuffers(1, ids)
-            gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, ids[0])
-            gl.glFramebufferTexture2D(gl.GL_FRAMEBUFFER, gl.GL_COLOR_ATTACHMENT0, gl.GL_TEXTURE_2D, color, 0)
-            if depth is not None:
-                gl.glFramebufferTexture2D(gl.GL_FRAMEBUFFER, gl.GL_DEPTH_ATTACHMENT, gl.GL_TEXTURE_2D, depth, 0)
-            status = gl.glCheckFramebufferStatus(gl.GL_FRAMEBUFFER)
-            gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, 0)
-            if status != gl.GL_FRAMEBUFFER_COMPLETE:
-                raise RuntimeError(f"fluid render target incomplete (status 0x{status:x})")
-            return int(ids[0])
-
+        full, half = (width, height), _half_size(width, height)
+        nearest, linear = gl.GL_NEAREST, gl.GL_LINEAR
+        depth32 = (gl.GL_DEPTH_COMPONENT32, gl.GL_DEPTH_COMPONENT, gl.GL_FLOAT)
+        make = self._make_texture
         t = {
-            "depth": texture(gl.GL_RG32F, gl.GL_RG, gl.GL_FLOAT),
-            "depth_blur": texture(gl.GL_RG32F, gl.GL_RG, gl.GL_FLOAT),
+            "depth": make(gl, gl.GL_RG32F, gl.GL_RG, gl.GL_FLOAT, full, nearest),
+            "depth_blur": make(gl, gl.GL_RG32F, gl.GL_RG, gl.GL_FLOAT, full, nearest),
             # thickness varies slowly and is blurred anyway: half resolution, read with linear filtering
-            "optical": texture(gl.GL_RGBA16F, gl.GL_RGBA, gl.GL_FLOAT, half, gl.GL_LINEAR),
-            "optical_blur": texture(gl.GL_RGBA16F, gl.GL_RGBA, gl.GL_FLOAT, half),
-            "zbuffer_half": texture(gl.GL_DEPTH_COMPONENT32, gl.GL_DEPTH_COMPONENT, gl.GL_FLOAT, half),
-            "scene_depth": texture(gl.GL_DEPTH_COMPONENT32, gl.GL_DEPTH_COMPONENT, gl.GL_FLOAT),
-            "scene_color": texture(gl.GL_RGB8, gl.GL_RGB, gl.GL_UNSIGNED_BYTE, filtering=gl.GL_LINEAR),
-            "zbuffer": texture(gl.GL_DEPTH_COMPONENT32, gl.GL_DEPTH_COMPONENT, gl.GL_FLOAT),
+            "optical": make(gl, gl.GL_RGBA16F, gl.GL_RGBA, gl.GL_FLOAT, half, linear),
+            "optical_blur": make(gl, gl.GL_RGBA16F, gl.GL_RGBA, gl.GL_FLOAT, half, nearest),
+            "zbuffer_half": make(gl, *depth32, half, nearest),
+            "scene_depth": make(gl, *depth32, full, nearest),
+            "scene_color": make(gl, gl.GL_RGB8, gl.GL_RGB, gl.GL_UNSIGNED_BYTE, full, linear),
+            "zbuffer": make(gl, *depth32, full, nearest),
         }
-        t["fbo_depth"] = framebuffer(t["depth"], t["zbuffer"])
-        t["fbo_optical"] = framebuffer(t["optical"], t["zbuffer_half"])
-        t["fbo_blur"] = framebuffer(t["depth_blur"])
-        t["fbo_depth_only"] = framebuffer(t["depth"])
-        t["fbo_scene"] = framebuffer(t["scene_color"], t["scene_depth"])
-        t["fbo_optical_blur"] = framebuffer(t["optical_blur"])
-        t["fbo_optical_only"] = framebuffer(t["optical"])
+        framebuffer = self._make_framebuffer
+        t["fbo_depth"] = framebuffer(gl, t["depth"], t["zbuffer"])
+        t["fbo_optical"] = framebuffer(gl, t["optical"], t["zbuffer_half"])
+        t["fbo_blur"] = framebuffer(gl, t["depth_blur"])
+        t["fbo_depth_only"] = framebuffer(gl, t["depth"])
+        t["fbo_scene"] = framebuffer(gl, t["scene_color"], t["scene_depth"])
+        t["fbo_optical_blur"] = framebuffer(gl, t["optical_blur"])
+        t["fbo_optical_only"] = framebuffer(gl, t["optical"])
         self._targets = t
         self.size = (width, height)
+
+    @staticmethod
+    def _make_texture(gl, internal, fmt, kind, size, filtering):
+        ids = (gl.GLuint * 1)()
+        gl.glGenTextures(1, ids)
+        gl.glBindTexture(gl.GL_TEXTURE_2D, ids[0])
+        gl.glTexImage2D(gl.GL_TEXTURE_2D, 0, internal, size[0], size[1], 0, fmt, kind, None)
+        gl.glTexParameteri(gl.GL_TEXTURE_2D, gl.GL_TEXTURE_MIN_FILTER, filtering)
+        gl.glTexParameteri(gl.GL_TEXTURE_2D, gl.GL_TEXTURE_MAG_FILTER, filtering)
+        gl.glTexParameteri(gl.GL_TEXTURE_2D, gl.GL_TEXTURE_WRAP_S, gl.GL_CLAMP_TO_EDGE)
+        gl.glTexParameteri(gl.GL_TEXTURE_2D, gl.GL_TEXTURE_WRAP_T, gl.GL_CLAMP_TO_EDGE)
+        gl.glBindTexture(gl.GL_TEXTURE_2D, 0)
+        return int(ids[0])
+
+    @staticmethod
+    def _make_framebuffer(gl, color, depth=None):
+        ids = (gl.GLuint * 1)()
+        gl.glGenFramebuffers(1, ids)
+        gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, ids[0])
+        gl.glFramebufferTexture2D(gl.GL_FRAMEBUFFER, gl.GL_COLOR_ATTACHMENT0, gl.GL_TEXTURE_2D, color, 0)
+        if depth is not None:
+            gl.glFramebufferTexture2D(gl.GL_FRAMEBUFFER, gl.GL_DEPTH_ATTACHMENT, gl.GL_TEXTURE_2D, depth, 0)
+        status = gl.glCheckFramebufferStatus(gl.GL_FRAMEBUFFER)
+        gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, 0)
+        if status != gl.GL_FRAMEBUFFER_COMPLETE:
+            raise RuntimeError(f"fluid render target incomplete (status 0x{status:x})")
+        return int(ids[0])
 
     def _release_targets(self, gl):
         if self._targets is None:
@@ -403,6 +436,9 @@ class FluidRendererGL:
         for name in list(self.diffuse_batches):
             self.remove_diffuse_batch(name)
         self._release_targets(gl)
+        if self._splatter is not None:
+            self._splatter.release()
+            self._splatter = None
         if self._programs is not None:
             for p in self._programs.values():
                 p.delete()
@@ -459,21 +495,26 @@ class FluidRendererGL:
         gl.glDisable(gl.GL_BLEND)
         gl.glDisable(gl.GL_CULL_FACE)
 
-        # the scene's colour (read by the shading pass) and depth (occludes the fluid)
+        compute = bool(batches) and self._use_compute(batches)
+        self.last_splatting = ("compute" if compute else "raster") if batches else None
+        # the scene's colour (read by the shading pass) and depth (occludes the fluid; in compute mode
+        # a float copy of it is made for the kernels, which the later passes read instead)
         gl.glBindFramebuffer(gl.GL_READ_FRAMEBUFFER, r._frame_fbo)
         gl.glBindFramebuffer(gl.GL_DRAW_FRAMEBUFFER, t["fbo_scene"])
-        gl.glBlitFramebuffer(
-            0, 0, width, height, 0, 0, width, height, gl.GL_COLOR_BUFFER_BIT | gl.GL_DEPTH_BUFFER_BIT, gl.GL_NEAREST
-        )
-        gl.glBindFramebuffer(gl.GL_DRAW_FRAMEBUFFER, t["fbo_depth"])
-        gl.glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, gl.GL_DEPTH_BUFFER_BIT, gl.GL_NEAREST)
-        half = _half_size(width, height)
-        gl.glBindFramebuffer(gl.GL_DRAW_FRAMEBUFFER, t["fbo_optical"])
-        gl.glBlitFramebuffer(0, 0, width, height, 0, 0, half[0], half[1], gl.GL_DEPTH_BUFFER_BIT, gl.GL_NEAREST)
+        bits = gl.GL_COLOR_BUFFER_BIT if compute else gl.GL_COLOR_BUFFER_BIT | gl.GL_DEPTH_BUFFER_BIT
+        gl.glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, bits, gl.GL_NEAREST)
+        self._scene_depth = t["scene_depth"]
+        if not compute:
+            # the raster passes test against the scene in their own depth buffers
+            gl.glBindFramebuffer(gl.GL_DRAW_FRAMEBUFFER, t["fbo_depth"])
+            gl.glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, gl.GL_DEPTH_BUFFER_BIT, gl.GL_NEAREST)
+            half = _half_size(width, height)
+            gl.glBindFramebuffer(gl.GL_DRAW_FRAMEBUFFER, t["fbo_optical"])
+            gl.glBlitFramebuffer(0, 0, width, height, 0, 0, half[0], half[1], gl.GL_DEPTH_BUFFER_BIT, gl.GL_NEAREST)
         timer.mark("copy_scene")
 
         if batches:
-            self._draw_surface(gl, batches, view, proj, focal_px, width, height, timer)
+            self._draw_surface(gl, batches, view, proj, focal_px, width, height, timer, compute)
         else:
             # only diffuse particles: no fluid surface in front of them
             gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, t["fbo_depth_only"])
@@ -498,12 +539,94 @@ class FluidRendererGL:
         self._present(gl, width, height)
         timer.mark("present")
         self.last_timings_ms = timer.finish()
+        if compute and self.measure_timings:
+            self.last_timings_ms.update({f"cuda_{k}": v for k, v in self._splatter.timings_ms.items()})
 
-    def _draw_surface(self, gl, batches, view, proj, focal_px, width, height, timer):
+    def _use_compute(self, batches) -> bool:
+        """Whether passes 1-3 run as Warp kernels this frame (see :attr:`splatting`)."""
+        if self._splatting == "raster":
+            return False
+        devices = {str(b.packed.device) for _, b in batches}
+        if len(devices) != 1:
+            return False  # the kernels need every batch on one device
+        if self._splatting == "compute":
+            return True
+        return batches[0][1].packed.device.is_cuda and self._cuda_interop
+
+    def _splat_compute(self, gl, batches, view, proj, focal_px, width, height, blur, timer):
+        """Passes 1-3 as Warp kernels, results in the ``depth`` and ``optical`` textures."""
+        device = batches[0][1].packed.device
+        size, half = (width, height), _half_size(width, height)
+        s = self._splatter
+        if s is None or s.size != size or s.device != device:
+            if s is not None:
+                s.release()
+            s = FluidSplatter(gl, device, size, half, interop=self._cuda_interop)
+            self._splatter = s
+            if device.is_cuda and not s.interop:
+                # this GL context cannot share buffers with the device: auto mode draws with GL
+                self._cuda_interop = False
+        t = self._targets
+        if "fbo_scene_depth_copy" not in t:
+            t["scene_depth_copy"] = self._make_texture(gl, gl.GL_R32F, gl.GL_RED, gl.GL_FLOAT, size, gl.GL_NEAREST)
+            t["fbo_scene_depth_copy"] = self._make_framebuffer(gl, t["scene_depth_copy"])
+        # the scene's depth as a float colour, which the splatter reads back and the shading and
+        # diffuse passes sample
+        gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, t["fbo_scene_depth_copy"])
+        gl.glDisable(gl.GL_DEPTH_TEST)
+        prog = self._programs["depth_copy"]
+        prog.use()
+        gl.glActiveTexture(gl.GL_TEXTURE0)
+        frame_depth = self.renderer._frame_depth_texture
+        gl.glBindTexture(gl.GL_TEXTURE_2D, int(getattr(frame_depth, "value", frame_depth)))
+        gl.glUniform1i(_loc(gl, prog, "scene_depth_tex"), 0)
+        gl.glBindVertexArray(self._empty_vao)
+        gl.glDrawArrays(gl.GL_TRIANGLES, 0, 3)
+        gl.glBindVertexArray(0)
+        gl.glBindTexture(gl.GL_TEXTURE_2D, 0)
+        prog.stop()
+        gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, 0)
+        timer.mark("scene_depth_copy")
+        self._scene_depth = t["scene_depth_copy"]
+        s.run(batches, view, proj, focal_px, blur, t["fbo_scene_depth_copy"], t["depth"], t["optical"], timer)
+
+    def _draw_surface(self, gl, batches, view, proj, focal_px, width, height, timer, compute):
         """Passes 1-4: thickness, depth, smoothing and shading of the fluid batches."""
         r = self.renderer
+        blur = np.zeros(shaders.MAX_BATCHES, dtype=np.float32)
+        for index, batch in batches:
+            blur[index] = self._blur_radius(batch)
+        if compute:
+            self._splat_compute(gl, batches, view, proj, focal_px, width, height, blur, timer)
+        else:
+            self._splat_raster(gl, batches, view, proj, focal_px, width, height, blur, timer)
+
+        # 4. shade into the frame buffer, with the fluid's depth
+        gl.glViewport(0, 0, width, height)
+        gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, r._frame_fbo)
+        gl.glEnable(gl.GL_DEPTH_TEST)
+        gl.glDepthFunc(gl.GL_ALWAYS)
+        gl.glDepthMask(gl.GL_TRUE)
+        prog = self._programs["shade"]
+        prog.use()
+        self._set_shading(gl, prog, batches, view, proj, width, height)
+        gl.glBindVertexArray(self._empty_vao)
+        gl.glDrawArrays(gl.GL_TRIANGLES, 0, 3)
+        prog.stop()
+        for unit in range(6):
+            gl.glActiveTexture(gl.GL_TEXTURE0 + unit)
+            gl.glBindTexture(gl.GL_TEXTURE_2D, 0)
+        gl.glActiveTexture(gl.GL_TEXTURE0)
+        gl.glDepthFunc(gl.GL_LESS)
+        timer.mark("shade")
+
+    def _splat_raster(self, gl, batches, view, proj, focal_px, width, height, blur, timer):
+        """Passes 1-3 with GLSL: thickness, depth and smoothing into the ``depth`` and ``optical`` textures."""
         t = self._targets
         half = _half_size(width, height)
+        for _, batch in batches:
+            if not batch.uploaded:
+                self._upload(gl, batch, batch.count)
         # 1. thickness: additive, tested against the scene only, at half resolution
         gl.glViewport(0, 0, half[0], half[1])
         gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, t["fbo_optical"])
@@ -517,7 +640,7 @@ class FluidRendererGL:
         prog = self._programs["thickness"]
         prog.use()
         self._set_camera(gl, prog, view, proj)
-        _uniform1f(gl, prog, "splat_scale", THICKNESS_SPLAT_SCALE)
+        _uniform1f(gl, prog, "splat_scale", shaders.THICKNESS_SPLAT_SCALE)
         for _, batch in batches:
             _uniform1f(gl, prog, "radius_scale", batch.material.radius_scale)
             gl.glUniform3f(_loc(gl, prog, "absorption"), *batch.material.absorption_coefficients())
@@ -544,9 +667,6 @@ class FluidRendererGL:
         timer.mark("depth")
 
         # 3. smooth: horizontal into depth_blur, vertical back into depth
-        blur = np.zeros(shaders.MAX_BATCHES, dtype=np.float32)
-        for index, batch in batches:
-            blur[index] = self._blur_radius(batch)
         gl.glBindVertexArray(self._empty_vao)
         self._separable(gl, "filter", ("depth", "fbo_blur", "depth_blur", "fbo_depth_only"), focal_px, blur)
         # the thickness is filtered at its half resolution, with the full-resolution depth beside it
@@ -564,24 +684,6 @@ class FluidRendererGL:
         gl.glViewport(0, 0, width, height)
         timer.mark("smooth")
 
-        # 4. shade into the frame buffer, with the fluid's depth
-        gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, r._frame_fbo)
-        gl.glEnable(gl.GL_DEPTH_TEST)
-        gl.glDepthFunc(gl.GL_ALWAYS)
-        gl.glDepthMask(gl.GL_TRUE)
-        prog = self._programs["shade"]
-        prog.use()
-        self._set_shading(gl, prog, batches, view, proj, width, height)
-        gl.glBindVertexArray(self._empty_vao)
-        gl.glDrawArrays(gl.GL_TRIANGLES, 0, 3)
-        prog.stop()
-        for unit in range(6):
-            gl.glActiveTexture(gl.GL_TEXTURE0 + unit)
-            gl.glBindTexture(gl.GL_TEXTURE_2D, 0)
-        gl.glActiveTexture(gl.GL_TEXTURE0)
-        gl.glDepthFunc(gl.GL_LESS)
-        timer.mark("shade")
-
     def _separable(self, gl, program, chain, focal_px, blur, depth_step=None):
         """Horizontal then vertical pass of a filter: ``chain`` = (source, fbo of the middle texture,
         middle texture, fbo of the result); the source is sampled from unit 0, the depth from unit 1."""
@@ -589,7 +691,7 @@ class FluidRendererGL:
         prog = self._programs[program]
         prog.use()
         _uniform1f(gl, prog, "focal_px", focal_px)
-        gl.glUniform1i(_loc(gl, prog, "max_radius_px"), MAX_FILTER_RADIUS_PX)
+        gl.glUniform1i(_loc(gl, prog, "max_radius_px"), shaders.MAX_FILTER_RADIUS_PX)
         gl.glUniform1fv(_loc(gl, prog, "blur_radius"), shaders.MAX_BATCHES, _floats(blur))
         if depth_step is None:
             gl.glUniform1i(_loc(gl, prog, "depth_tex"), 0)
@@ -618,7 +720,7 @@ class FluidRendererGL:
         prog.use()
         self._set_camera(gl, prog, view, proj)
         for unit, (uniform, texture) in enumerate(
-            (("fluid_depth_tex", t["depth"]), ("scene_depth_tex", t["scene_depth"]))
+            (("fluid_depth_tex", t["depth"]), ("scene_depth_tex", self._scene_depth))
         ):
             gl.glActiveTexture(gl.GL_TEXTURE0 + unit)
             gl.glBindTexture(gl.GL_TEXTURE_2D, texture)
@@ -699,7 +801,7 @@ class FluidRendererGL:
             ("scene_tex", t["scene_color"]),
             ("env_tex", int(env.value if hasattr(env, "value") else env) if env is not None else 0),
             ("shadow_tex", int(shadow.value if hasattr(shadow, "value") else shadow) if shadow is not None else 0),
-            ("scene_depth_tex", t["scene_depth"]),
+            ("scene_depth_tex", self._scene_depth),
         )
         for unit, (uniform, texture) in enumerate(units):
             gl.glActiveTexture(gl.GL_TEXTURE0 + unit)
@@ -751,7 +853,7 @@ class _PassTimer:
     """
 
     def __init__(self, gl, enabled):
-        self._gl, self._enabled = gl, enabled
+        self._gl, self.enabled = gl, enabled
         self._names = []
         self._queries = []
         if enabled:
@@ -765,12 +867,12 @@ class _PassTimer:
         self._queries.append(query)
 
     def mark(self, name):
-        if self._enabled:
+        if self.enabled:
             self._stamp()
             self._names.append(name)
 
     def finish(self):
-        if not self._enabled:
+        if not self.enabled:
             return {}
         gl = self._gl
         stamps = []

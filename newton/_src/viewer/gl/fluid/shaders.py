@@ -10,6 +10,11 @@ light in linear space and converts back.
 """
 
 MAX_BATCHES = 16
+# pixel budget of one filter tap line; wider blurs are cut at it
+MAX_FILTER_RADIUS_PX = 32
+# splats for the thickness pass are this much larger than the drawn ellipsoids, which fills the
+# gaps between particles so that a body of fluid reads as one slab
+THICKNESS_SPLAT_SCALE = 1.5
 
 # Instanced screen-space quad of one ellipsoid: its exact projected bounding rectangle (Sigg,
 # Weyrich, Botsch & Gross, "GPU-based ray-casting of quadratic surfaces", 2006), placed at the
@@ -169,6 +174,18 @@ void main()
     vec2 p = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));
     v_uv = p;
     gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
+}
+"""
+
+# The scene's window depth as a float colour target: the compute passes read it back through a
+# pixel buffer, and reading a depth format back is slow on some drivers (2.6 ms at 720p on an H100)
+DEPTH_COPY_FRAGMENT = """
+#version 330 core
+uniform sampler2D scene_depth_tex;
+layout(location = 0) out float out_depth;
+void main()
+{
+    out_depth = texelFetch(scene_depth_tex, ivec2(gl_FragCoord.xy), 0).r;
 }
 """
 
