@@ -563,12 +563,8 @@ def test_splatting_mode(test, device):
         with test.assertRaisesRegex(ValueError, "splatting='gpu'"):
             fluid.splatting = "gpu"
         fluid.splatting = "auto"
-        scene.viewer.begin_frame(0.0)
-        scene.viewer.log_fluid(
-            "/f", wp.array(lattice((4, 4, 4), (-0.03, -0.03, 0.0)), dtype=wp.vec3, device="cpu"), radii=R
-        )
-        scene.viewer.end_frame()
         # CPU arrays: auto draws with the raster passes
+        scene.frame([("/f", lattice((4, 4, 4), (-0.03, -0.03, 0.0)), {"radii": R})])
         test.assertEqual(fluid.last_splatting, "raster")
     finally:
         scene.close()

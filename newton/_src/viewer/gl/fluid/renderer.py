@@ -161,8 +161,6 @@ class FluidRendererGL:
         self._cuda_interop = True
         self._splatting = "auto"
         self._splatter = None
-        # the scene depth texture the passes of this frame read (see render)
-        self._scene_depth = 0
         self.last_timings_ms: dict[str, float] = {}
         self.last_splatting = None
         self.measure_timings = False
@@ -503,7 +501,6 @@ class FluidRendererGL:
         gl.glBindFramebuffer(gl.GL_DRAW_FRAMEBUFFER, t["fbo_scene"])
         bits = gl.GL_COLOR_BUFFER_BIT if compute else gl.GL_COLOR_BUFFER_BIT | gl.GL_DEPTH_BUFFER_BIT
         gl.glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, bits, gl.GL_NEAREST)
-        self._scene_depth = t["scene_depth"]
         if not compute:
             # the raster passes test against the scene in their own depth buffers
             gl.glBindFramebuffer(gl.GL_DRAW_FRAMEBUFFER, t["fbo_depth"])
@@ -542,6 +539,13 @@ class FluidRendererGL:
         if compute and self.measure_timings:
             self.last_timings_ms.update({f"cuda_{k}": v for k, v in self._splatter.timings_ms.items()})
 
+    def _scene_depth_texture(self):
+        """The scene's depth as this frame's later passes read it: the float copy made for the compute
+        passes (the depth blit is skipped then), the blitted depth otherwise."""
+        if self.last_splatting == "compute":
+            return self._targets["scene_depth_copy"]
+        return self._targets["scene_depth"]
+
     def _use_compute(self, batches) -> bool:
         """Whether passes 1-3 run as Warp kernels this frame (see :attr:`splatting`)."""
         if self._splatting == "raster":
@@ -577,8 +581,7 @@ class FluidRendererGL:
         prog = self._programs["depth_copy"]
         prog.use()
         gl.glActiveTexture(gl.GL_TEXTURE0)
-        frame_depth = self.renderer._frame_depth_texture
-        gl.glBindTexture(gl.GL_TEXTURE_2D, int(getattr(frame_depth, "value", frame_depth)))
+        gl.glBindTexture(gl.GL_TEXTURE_2D, _gl_name(self.renderer._frame_depth_texture))
         gl.glUniform1i(_loc(gl, prog, "scene_depth_tex"), 0)
         gl.glBindVertexArray(self._empty_vao)
         gl.glDrawArrays(gl.GL_TRIANGLES, 0, 3)
@@ -587,7 +590,6 @@ class FluidRendererGL:
         prog.stop()
         gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, 0)
         timer.mark("scene_depth_copy")
-        self._scene_depth = t["scene_depth_copy"]
         s.run(batches, view, proj, focal_px, blur, t["fbo_scene_depth_copy"], t["depth"], t["optical"], timer)
 
     def _draw_surface(self, gl, batches, view, proj, focal_px, width, height, timer, compute):
@@ -720,7 +722,7 @@ class FluidRendererGL:
         prog.use()
         self._set_camera(gl, prog, view, proj)
         for unit, (uniform, texture) in enumerate(
-            (("fluid_depth_tex", t["depth"]), ("scene_depth_tex", self._scene_depth))
+            (("fluid_depth_tex", t["depth"]), ("scene_depth_tex", self._scene_depth_texture()))
         ):
             gl.glActiveTexture(gl.GL_TEXTURE0 + unit)
             gl.glBindTexture(gl.GL_TEXTURE_2D, texture)
@@ -799,9 +801,9 @@ class FluidRendererGL:
             ("depth_tex", t["depth"]),
             ("optical_tex", t["optical"]),
             ("scene_tex", t["scene_color"]),
-            ("env_tex", int(env.value if hasattr(env, "value") else env) if env is not None else 0),
-            ("shadow_tex", int(shadow.value if hasattr(shadow, "value") else shadow) if shadow is not None else 0),
-            ("scene_depth_tex", self._scene_depth),
+            ("env_tex", _gl_name(env) if env is not None else 0),
+            ("shadow_tex", _gl_name(shadow) if shadow is not None else 0),
+            ("scene_depth_tex", self._scene_depth_texture()),
         )
         for unit, (uniform, texture) in enumerate(units):
             gl.glActiveTexture(gl.GL_TEXTURE0 + unit)
@@ -882,6 +884,11 @@ class _PassTimer:
             stamps.append(value.value)
             gl.glDeleteQueries(1, ctypes.byref(query))
         return {name: 1.0e-6 * (stamps[k + 1] - stamps[k]) for k, name in enumerate(self._names)}
+
+
+def _gl_name(obj) -> int:
+    """A GL object name held by upstream as an int or a ``GLuint``."""
+    return int(getattr(obj, "value", obj))
 
 
 def _half_size(width, height):

@@ -156,6 +156,29 @@ def splat_footprint(instances: wp.array2d[wp.vec4], i: int, cam: SplatView, scal
     return to_unit, mc, qc, share, x0, y0, nx, nx * (y1 - y0 + 1)
 
 
+@wp.func
+def footprint_pixel(k: int, x0: int, y0: int, nx: int):
+    """Pixel k of a footprint rectangle of width nx starting at (x0, y0), row by row."""
+    row = k // nx
+    return x0 + k - row * nx, y0 + row
+
+
+@wp.func
+def hit_ellipsoid(to_unit: wp.mat33, mc: wp.vec3, qc: float, ray: wp.vec3):
+    """Entry and exit parameter of the ray t * ray through the ellipsoid (entry <= 0: no hit in front).
+
+    The ray-cast of ``_ELLIPSOID_HIT`` in shaders.py, with the centre terms of splat_footprint.
+    """
+    a = to_unit * ray
+    qa = wp.dot(a, a)
+    qb = -wp.dot(a, mc)
+    disc = qb * qb - qa * qc
+    if disc < 0.0:
+        return -1.0, -1.0
+    root = wp.sqrt(disc)
+    return (-qb - root) / qa, (-qb + root) / qa
+
+
 @wp.kernel
 def splat_fluid_depth(
     instances: wp.array2d[wp.vec4],
@@ -172,16 +195,9 @@ def splat_fluid_depth(
     i = tid // lanes
     to_unit, mc, qc, share, x0, y0, nx, count = splat_footprint(instances, i, cam, radius_scale)
     for k in range(tid - i * lanes, count, lanes):
-        y = y0 + k // nx
-        x = x0 + k - (k // nx) * nx
+        x, y = footprint_pixel(k, x0, y0, nx)
         ray = pixel_ray(x, y, cam)
-        a = to_unit * ray
-        qa = wp.dot(a, a)
-        qb = -wp.dot(a, mc)
-        disc = qb * qb - qa * qc
-        if disc < 0.0:
-            continue
-        t0 = (-qb - wp.sqrt(disc)) / qa
+        t0, t1 = hit_ellipsoid(to_unit, mc, qc, ray)
         if t0 <= 0.0:
             continue
         key = wp.int64(t0 * DEPTH_KEY_SCALE) * wp.int64(BATCH_SLOTS) + wp.int64(batch)
@@ -210,22 +226,14 @@ def splat_fluid_thickness(
     i = tid // lanes
     to_unit, mc, qc, share, x0, y0, nx, count = splat_footprint(instances, i, cam, radius_scale * splat_scale)
     for k in range(tid - i * lanes, count, lanes):
-        y = y0 + k // nx
-        x = x0 + k - (k // nx) * nx
+        x, y = footprint_pixel(k, x0, y0, nx)
         ray = pixel_ray(x, y, cam)
-        a = to_unit * ray
-        qa = wp.dot(a, a)
-        qb = -wp.dot(a, mc)
-        disc = qb * qb - qa * qc
-        if disc < 0.0:
-            continue
-        root = wp.sqrt(disc)
-        t0 = (-qb - root) / qa
+        t0, t1 = hit_ellipsoid(to_unit, mc, qc, ray)
         if t0 <= 0.0:
             continue
         if window_depth(t0 * ray, cam) >= scene_depth_at(scene_depth, x, y, cam):
             continue
-        chord = 2.0 * root / qa * wp.length(ray) * share
+        chord = (t1 - t0) * wp.length(ray) * share
         wp.atomic_add(
             optical, y, x, wp.vec4(absorption[0] * chord, absorption[1] * chord, absorption[2] * chord, chord)
         )
