@@ -77,9 +77,10 @@ def measure_density_error(q: np.ndarray, mass: float, spacing: float, h: float, 
 
 
 def kernel_breakdown(simulate, device) -> list:
-    """GPU time per kernel name over one un-captured frame (CUDA only)."""
+    """GPU time per kernel name over one un-captured frame (CUDA only; activity records: the times
+    exclude launch gaps, which :func:`pass_breakdown` includes)."""
     wp.synchronize_device(device)
-    wp.timing_begin(cuda_filter=wp.TIMING_KERNEL | wp.TIMING_MEMSET | wp.TIMING_MEMCPY)
+    wp.timing_begin(cuda_filter=wp.TIMING_KERNEL | wp.TIMING_KERNEL_BUILTIN | wp.TIMING_MEMSET | wp.TIMING_MEMCPY)
     simulate()
     results = wp.timing_end()
     total = {}
@@ -88,6 +89,105 @@ def kernel_breakdown(simulate, device) -> list:
         t, c = total.get(key, (0.0, 0))
         total[key] = (t + r.elapsed, c + 1)
     return sorted(([k, t, c] for k, (t, c) in total.items()), key=lambda x: -x[1])
+
+
+@wp.kernel
+def copy_vec3(src: wp.array[wp.vec3], dst: wp.array[wp.vec3]):
+    i = wp.tid()
+    dst[i] = src[i]
+
+
+def graph_ms(device, body, replays: int = 30) -> float:
+    """Median ms of one replay of a CUDA graph captured from ``body`` (after one un-captured call)."""
+    body()
+    with wp.ScopedCapture(device=device) as capture:
+        body()
+    times = []
+    for _ in range(replays):
+        wp.synchronize_device(device)
+        t0 = time.perf_counter()
+        wp.capture_launch(capture.graph)
+        wp.synchronize_device(device)
+        times.append((time.perf_counter() - t0) * 1000.0)
+    return statistics.median(times)
+
+
+def pass_breakdown(solver, collision, states, contacts, substeps: int, iterations: int, dt: float, device) -> dict:
+    """Graph time of each part of a frame, each captured and replayed alone (CUDA only).
+
+    Unlike per-kernel activity records this includes the gaps between the graph's nodes, which at
+    this size are a large part of a frame. The parts run on the current state (they change it).
+    """
+    fluid = solver._fluid
+    deltas = wp.zeros_like(states[0].particle_q)
+
+    def upstream():
+        # the same step without the fluid solve; particle contacts off as in the all-fluid step
+        model = solver.model
+        saved = (solver._fluid, model.particle_grid, model.particle_max_radius)
+        solver._fluid, model.particle_grid, model.particle_max_radius = None, None, 0.0
+        for _ in range(substeps):
+            collision.collide(states[0], contacts)
+            solver.step(states[0], states[1], None, contacts, dt)
+            states[0], states[1] = states[1], states[0]
+        solver._fluid, model.particle_grid, model.particle_max_radius = saved
+
+    def neighbors():
+        for _ in range(substeps):
+            fluid.build_neighborhood(states[0].particle_q)
+
+    def density():
+        fluid.contacts = contacts
+        for _ in range(substeps):
+            fluid._slots_hold_positions = True
+            for _ in range(iterations):
+                fluid.solve_density(states[0].particle_q, deltas)
+
+    def finish():
+        for _ in range(substeps):
+            fluid.finish_step(states[0], dt)
+
+    def collide():
+        for _ in range(substeps):
+            collision.collide(states[0], contacts)
+
+    def copies():
+        for _ in range(100):
+            wp.launch(copy_vec3, dim=fluid.fluid_count, inputs=[states[0].particle_q], outputs=[deltas], device=device)
+
+    off = wp.zeros(1, dtype=wp.int32, device=device)
+
+    def conditionals():
+        for _ in range(100):
+            wp.capture_if(off, on_true=copies_once)
+
+    def copies_once():
+        wp.launch(copy_vec3, dim=fluid.fluid_count, inputs=[states[0].particle_q], outputs=[deltas], device=device)
+
+    search = fluid.search
+
+    def sorts():
+        for _ in range(substeps):
+            wp.utils.radix_sort_pairs(search.keys, search.values, search.slot_count, end_bit=search.table_bits + 1)
+
+    def lists():
+        # the scan alone, on the slots of the last build (inputs unchanged between launches)
+        for _ in range(substeps):
+            search.scan()
+
+    # the upstream step without the fluid solve lets the particles fall through each other: it goes last
+    parts = {
+        "100 x one-line kernel over the fluid (cost of a node)": copies,
+        "100 x capture_if on a zero flag (cost of a skipped conditional node)": conditionals,
+        "neighbour build": neighbors,
+        "radix sort of the keys": sorts,
+        "neighbour list scan": lists,
+        "density passes": density,
+        "finish (viscosity, recovery)": finish,
+        "collide (upstream)": collide,
+        "collide + step without the fluid solve (upstream)": upstream,
+    }
+    return {name: graph_ms(device, body) for name, body in parts.items()}
 
 
 def run(args) -> dict:
@@ -167,6 +267,9 @@ def run(args) -> dict:
                 wp.capture_launch(capture.graph)
             wp.synchronize_device(device)
             render_ms = (time.perf_counter() - t0) * 1000.0 / 50
+        parts = {}
+        if args.pass_timing and graph is not None:
+            parts = pass_breakdown(solver, collision, states, contacts, args.substeps, args.iterations, dt, device)
 
     density = {k: float(np.mean([e[k] for e in errors])) for k in errors[0]}
     for key in ("max_compression", "max_compression_walls"):
@@ -200,6 +303,7 @@ def run(args) -> dict:
         **density,
         "update_render_particles_ms": render_ms,
         "kernel_ms_per_frame": breakdown,
+        "graph_ms_per_frame_of_part": parts,
     }
 
 
@@ -220,6 +324,9 @@ def main(argv=None):
     parser.add_argument("--frames", type=int, default=30, help="frames per timed trial")
     parser.add_argument("--trials", type=int, default=5)
     parser.add_argument("--kernel-timing", action="store_true", help="per-kernel GPU time of one frame (CUDA)")
+    parser.add_argument(
+        "--pass-timing", action="store_true", help="graph time of each part of a frame, each replayed alone (CUDA)"
+    )
     parser.add_argument("--json", default=None, help="write the result here")
     args = parser.parse_args(argv)
     wp.config.quiet = True
@@ -238,9 +345,12 @@ def main(argv=None):
     if r["update_render_particles_ms"] is not None:
         print(f"update_render_particles: {r['update_render_particles_ms']:.3f} ms (graph replay)")
     if r["kernel_ms_per_frame"]:
-        print("per-kernel GPU time of one frame [ms] (launches):")
+        busy = sum(t for _, t, _ in r["kernel_ms_per_frame"])
+        print(f"per-kernel GPU time of one frame [ms] (launches); sum {busy:.3f} ms, the rest is gaps between them:")
         for name, t, c in r["kernel_ms_per_frame"][:25]:
             print(f"  {t:8.3f}  ({c:4d})  {name}")
+    for name, t in r["graph_ms_per_frame_of_part"].items():
+        print(f"  {t:8.3f} ms/frame  {name} (graph of its own)")
     if args.json:
         with open(args.json, "w") as f:
             json.dump(r, f, indent=1)

@@ -91,25 +91,6 @@ def compute_fluid_cell_keys(
 
 
 @wp.kernel
-def mark_fluid_cell_ranges(
-    keys: wp.array[wp.int32],
-    slot_count: int,
-    mask: int,
-    # outputs
-    cell_start: wp.array[wp.int32],
-    cell_end: wp.array[wp.int32],
-):
-    i = wp.tid()
-    key = keys[i]
-    if key > mask:
-        return
-    if i == 0 or keys[i - 1] != key:
-        cell_start[key] = i
-    if i == slot_count - 1 or keys[i + 1] != key:
-        cell_end[key] = i + 1
-
-
-@wp.kernel
 def gather_fluid_slots(
     keys: wp.array[wp.int32],
     values: wp.array[wp.int32],
@@ -117,16 +98,26 @@ def gather_fluid_slots(
     particle_q: wp.array[wp.vec3],
     particle_mass: wp.array[float],
     particle_world: wp.array[wp.int32],
+    slot_count: int,
     mask: int,
     # outputs
+    cell_start: wp.array[wp.int32],
+    cell_end: wp.array[wp.int32],
     sorted_particle: wp.array[wp.int32],
     sorted_xm: wp.array[wp.vec4],
     sorted_world: wp.array[wp.int32],
     slot_of_particle: wp.array[wp.int32],
 ):
+    """Mark where each occupied cell's slots begin and end, and gather the particles into slot order."""
     i = wp.tid()
     pi = fluid_particle[values[i]]
-    if keys[i] > mask:
+    key = keys[i]
+    if key <= mask:
+        if i == 0 or keys[i - 1] != key:
+            cell_start[key] = i
+        if i == slot_count - 1 or keys[i + 1] != key:
+            cell_end[key] = i + 1
+    if key > mask:
         sorted_particle[i] = -1
         sorted_world[i] = _NO_WORLD
         slot_of_particle[pi] = -1
@@ -296,22 +287,35 @@ class FluidNeighborSearch:
         )
         wp.utils.radix_sort_pairs(self.keys, self.values, n, end_bit=self.table_bits + 1)
         wp.launch(
-            mark_fluid_cell_ranges,
-            dim=n,
-            inputs=[self.keys, n, self.mask],
-            outputs=[self.cell_start, self.cell_end],
-            device=device,
-        )
-        wp.launch(
             gather_fluid_slots,
             dim=n,
-            inputs=[self.keys, self.values, self.fluid_particle, particle_q, particle_mass, particle_world, self.mask],
-            outputs=[self.sorted_particle, self.sorted_xm, self.sorted_world, self.slot_of_particle],
+            inputs=[
+                self.keys,
+                self.values,
+                self.fluid_particle,
+                particle_q,
+                particle_mass,
+                particle_world,
+                n,
+                self.mask,
+            ],
+            outputs=[
+                self.cell_start,
+                self.cell_end,
+                self.sorted_particle,
+                self.sorted_xm,
+                self.sorted_world,
+                self.slot_of_particle,
+            ],
             device=device,
         )
+        self.scan()
+
+    def scan(self) -> None:
+        """Rebuild the neighbour lists of the slots as last sorted and gathered (part of :meth:`build`)."""
         wp.launch(
             build_fluid_neighbor_lists,
-            dim=n,
+            dim=self.slot_count,
             inputs=[
                 self.keys,
                 self.sorted_xm,
@@ -325,5 +329,5 @@ class FluidNeighborSearch:
                 self.stop_at,
             ],
             outputs=[self.neighbors, self.neighbor_count, self.candidate_count],
-            device=device,
+            device=self.sorted_xm.device,
         )
