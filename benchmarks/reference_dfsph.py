@@ -115,9 +115,11 @@ def run_xpbd(args, L: float, times: np.ndarray) -> dict:
         speed_clamp=0.0,
         floor_friction=0.0,
     )
-    model, solver, pipeline, dt = validate.build(args.per_l, args.depth, cfg, device, height=4.0 * L)
     d = L / args.per_l
-    rec = Recorder(L, d, 1000.0 * d**3, solver.fluid_smoothing_length, args.depth * d)
+    gap = args.xpbd_wall_gap * d
+    model, solver, pipeline, dt = validate.build(args.per_l, args.depth, cfg, device, height=4.0 * L, wall_gap=gap)
+    # with a gap the fluid's boundary planes are the walls, as for DFSPH (resting centres half a spacing inside)
+    rec = Recorder(L, d, 1000.0 * d**3, solver.fluid_smoothing_length, args.depth * d, wall_shift=gap)
     stepper = validate.Stepper(model, solver, pipeline, dt)
     rec.record(0.0, stepper.state.particle_q.numpy(), stepper.state.particle_qd.numpy())
     wall = 0.0
@@ -133,6 +135,7 @@ def run_xpbd(args, L: float, times: np.ndarray) -> dict:
         "particles": int(model.particle_count),
         "substeps_per_frame": args.substeps,
         "iterations": args.iterations,
+        "wall_gap_spacings": args.xpbd_wall_gap,
         "steps": stepper.steps,
         "wall_s": wall,
         "ms_per_frame": 1000.0 * wall / (stepper.time * 60.0),
@@ -307,6 +310,13 @@ def main(argv=None):
     parser.add_argument("--substeps", type=int, default=8, help="ours, per 60 Hz frame")
     parser.add_argument("--iterations", type=int, default=2, help="ours")
     parser.add_argument("--device", default="cpu", help="ours")
+    parser.add_argument(
+        "--xpbd-wall-gap",
+        type=float,
+        default=0.0,
+        help="ours: floor and walls this many spacings beyond the column's faces (0.5: the column drops and "
+        "spreads half a spacing at the start, as DFSPH's does against its walls)",
+    )
     parser.add_argument("--skip-dfsph", action="store_true")
     parser.add_argument("--skip-xpbd", action="store_true")
     parser.add_argument(

@@ -45,11 +45,13 @@ def surge_front(q: np.ndarray, d: float) -> float:
     return float(np.percentile(low[:, 0], 99.9) + 0.5 * d) if len(low) else 0.0
 
 
-def build(per_l: int, depth_layers: int, args, device, height: float = 2.5 * L, **solver_kwargs):
+def build(per_l: int, depth_layers: int, args, device, height: float = 2.5 * L, wall_gap: float = 0.0, **solver_kwargs):
     """The tank and column of Koshizuka & Oka at ``per_l`` particles across L: (model, solver, pipeline, dt).
 
     ``args`` supplies ``substeps``, ``iterations``, ``cohesion``, ``viscosity``, ``speed_clamp`` and
-    ``floor_friction``; ``solver_kwargs`` go to the solver. The column's back face is at x = 0, the floor at z = 0.
+    ``floor_friction``; ``solver_kwargs`` go to the solver. The column's back face is at x = 0 and its
+    bottom at z = 0; the floor and the walls are ``wall_gap`` [m] beyond the column's faces (and the
+    far wall that far beyond 5L).
     """
     d = L / per_l
     builder = newton.ModelBuilder()
@@ -71,15 +73,16 @@ def build(per_l: int, depth_layers: int, args, device, height: float = 2.5 * L, 
     cfg = newton.ModelBuilder.ShapeConfig(mu=0.0)
     # XPBD's particle-shape friction is the mean of model.soft_contact_mu (0 below) and the shape's mu:
     # the floor's 2 f gives the floor friction f, the walls' 0 frictionless walls
-    builder.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(mu=2.0 * args.floor_friction))
+    builder.add_ground_plane(height=-wall_gap, cfg=newton.ModelBuilder.ShapeConfig(mu=2.0 * args.floor_friction))
     t = 0.05
+    g = wall_gap
     width = depth_layers * d
     length = 5.0 * L
     for center, half in (
-        ((-t, 0.5 * width, 0.5 * height), (t, 0.5 * width + 2 * t, 0.5 * height)),
-        ((length + t, 0.5 * width, 0.5 * height), (t, 0.5 * width + 2 * t, 0.5 * height)),
-        ((0.5 * length, -t, 0.5 * height), (0.5 * length, t, 0.5 * height)),
-        ((0.5 * length, width + t, 0.5 * height), (0.5 * length, t, 0.5 * height)),
+        ((-t - g, 0.5 * width, 0.5 * height), (t, 0.5 * width + 2 * t + g, 0.5 * height)),
+        ((length + t + g, 0.5 * width, 0.5 * height), (t, 0.5 * width + 2 * t + g, 0.5 * height)),
+        ((0.5 * length, -t - g, 0.5 * height), (0.5 * length + g, t, 0.5 * height)),
+        ((0.5 * length, width + t + g, 0.5 * height), (0.5 * length + g, t, 0.5 * height)),
     ):
         builder.add_shape_box(
             -1, xform=wp.transform(wp.vec3(*center), wp.quat_identity()), hx=half[0], hy=half[1], hz=half[2], cfg=cfg
