@@ -11,7 +11,8 @@ the far wall, plunging wave, sloshing). Every run is timed over all its frames b
 every ``--sample-every`` frames with the independent estimator of ``reference_dfsph.py``
 (poly6, ghost-lattice walls). Fixed counts: ``--iterations`` x ``--substeps``; tolerance mode: up
 to ``--max-iterations`` XPBD iterations whose density passes stop once the mean compression is
-within each of ``--tolerances`` (``fluid_density_tolerance``).
+within each of ``--tolerances`` (``fluid_density_tolerance``); with ``--subpasses N``, each XPBD
+iteration instead runs up to N density passes (``fluid_max_iterations``) that stop there.
 
 Prints a table and writes JSON; ``--plot PNG`` draws the chart from one or more JSON files
 (``--inputs``, default: this run) with SPlisHSPlasH's points from ``reference_dfsph.py`` JSON
@@ -35,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 
-def run_one(args, device, substeps: int, iterations: int, tolerance: float) -> dict:
+def run_one(args, device, substeps: int, iterations: int, tolerance: float, passes: int = 1) -> dict:
     # benchmarks/ is on the path of a script run from it
     import reference_dfsph as reference  # noqa: PLC0415
     import validate_dam_break as validate  # noqa: PLC0415
@@ -52,6 +53,7 @@ def run_one(args, device, substeps: int, iterations: int, tolerance: float) -> d
         device,
         height=4.0 * L,
         fluid_density_tolerance=tolerance,
+        fluid_max_iterations=passes,
     )
     d = L / args.per_l
     rec = reference.Recorder(L, d, 1000.0 * d**3, solver.fluid_smoothing_length, args.depth * d)
@@ -87,10 +89,12 @@ def run_one(args, device, substeps: int, iterations: int, tolerance: float) -> d
                 rec.record((k + 1) / 60.0, states[0].particle_q.numpy(), states[0].particle_qd.numpy())
         stats = solver.fluid_diagnostics(states[0])
     s = rec.rows
+    mode = "fixed" if tolerance <= 0.0 else ("tolerance" if passes == 1 else "tolerance, sub-passes")
     return {
-        "mode": "tolerance" if tolerance > 0.0 else "fixed",
+        "mode": mode,
         "substeps": substeps,
         "iterations": iterations,
+        "fluid_max_iterations": passes,
         "fluid_density_tolerance": tolerance,
         # the passes that corrected, over every substep of the run
         "density_passes_per_substep": (
@@ -115,7 +119,12 @@ def sweep(args) -> dict:
     wp.config.quiet = True
     device = wp.get_device(args.device)
     configs = [(s, i, 0.0) for s in args.substeps for i in args.iterations]
-    configs += [(s, args.max_iterations, tol) for s in args.substeps for tol in args.tolerances]
+    if args.subpasses > 1:
+        # the tolerance on density passes within each XPBD iteration (upstream's per-iteration work is
+        # not repeated for a pass)
+        configs += [(s, args.max_iterations, tol, args.subpasses) for s in args.substeps for tol in args.tolerances]
+    else:
+        configs += [(s, args.max_iterations, tol) for s in args.substeps for tol in args.tolerances]
     runs = []
     print(
         f"{'mode':<10}{'substeps':>9}{'iters':>6}{'tol':>8}{'passes':>8}{'ms/frame':>10}"
@@ -144,7 +153,7 @@ def sweep(args) -> dict:
             # written after every run, so an interrupted sweep keeps what it measured
             Path(args.json).write_text(json.dumps(result, indent=1))
         print(
-            f"{r['mode']:<10}{r['substeps']:>9}{r['iterations']:>6}{r['fluid_density_tolerance']:>8.4f}"
+            f"{r['mode'][:10]:<10}{r['substeps']:>9}{r['iterations']:>6}{r['fluid_density_tolerance']:>8.4f}"
             f"{r['density_passes_per_substep']:>8.2f}{r['ms_per_frame']:>10.2f}"
             f"{100 * r['mean_abs_density_error']:>8.2f}%{100 * r['mean_compression']:>7.2f}%"
             f"{100 * r['p99_compression']:>7.2f}%{100 * r['max_compression']:>7.2f}%",
@@ -168,12 +177,12 @@ def plot(inputs: list, reference: str | None, path: str):
         for ax, (key, label) in zip(row, metrics, strict=True):
             for n, substeps in enumerate(sorted({r["substeps"] for r in result["runs"]})):
                 color = f"C{n}"
-                for mode, style in (("fixed", "-o"), ("tolerance", "--s")):
+                for mode, style in (("fixed", "-o"), ("tolerance", "--s"), ("tolerance, sub-passes", ":^")):
                     rs = [r for r in result["runs"] if r["mode"] == mode and r["substeps"] == substeps]
                     rs.sort(key=lambda r: r["ms_per_frame"])
                     if not rs:
                         continue
-                    name = "iterations" if mode == "fixed" else "tolerance"
+                    name = "iterations" if mode == "fixed" else mode
                     ax.plot(
                         [r["ms_per_frame"] for r in rs],
                         [r[key] for r in rs],
@@ -224,6 +233,13 @@ def main(argv=None):
     parser.add_argument("--iterations", type=int, nargs="+", default=[1, 2, 4, 8])
     parser.add_argument("--tolerances", type=float, nargs="*", default=[0.01, 0.005, 0.0025, 0.001])
     parser.add_argument("--max-iterations", type=int, default=8, help="XPBD iterations of the tolerance mode")
+    parser.add_argument(
+        "--subpasses",
+        type=int,
+        default=1,
+        help="tolerance mode with up to this many density passes per XPBD iteration (fluid_max_iterations); "
+        "1: the tolerance ends the substep's density passes at the XPBD iteration level",
+    )
     parser.add_argument("--device", default=None)
     parser.add_argument("--json", default=None)
     parser.add_argument("--plot", default=None, help="draw the chart here (from --inputs, or this run)")
