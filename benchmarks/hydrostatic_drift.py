@@ -39,6 +39,8 @@ def main(argv=None):
     parser.add_argument("--iterations", type=int, default=2)
     parser.add_argument("--viscosity", type=float, default=0.05)
     parser.add_argument("--cohesion", type=float, default=0.0)
+    parser.add_argument("--relaxation", type=float, default=1.0, help="fluid_relaxation")
+    parser.add_argument("--smoothing", type=float, default=1.8, help="smoothing length over the spacing")
     parser.add_argument("--settle", type=float, default=3.0, help="seconds before the reference positions")
     parser.add_argument("--seconds", type=int, default=5, help="seconds of drift measured")
     parser.add_argument("--device", default=None)
@@ -74,6 +76,8 @@ def main(argv=None):
         fluid_rest_distance=D,
         fluid_viscosity=args.viscosity,
         fluid_cohesion=args.cohesion,
+        fluid_relaxation=args.relaxation,
+        fluid_smoothing_length=args.smoothing * D,
     )
     # contacts out to one diameter from the surface, so the particles see the walls' density
     pipeline = newton.CollisionPipeline(model, soft_contact_gap=0.5 * D)
@@ -132,6 +136,8 @@ def main(argv=None):
         "iterations": args.iterations,
         "viscosity": args.viscosity,
         "cohesion": args.cohesion,
+        "relaxation": args.relaxation,
+        "smoothing_over_spacing": args.smoothing,
         "settle_s": args.settle,
         "rows": rows,
     }
