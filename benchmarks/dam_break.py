@@ -167,8 +167,9 @@ def pass_breakdown(solver, collision, states, contacts, substeps: int, iteration
     search = fluid.search
 
     def sorts():
+        # the sort alone, of the keys of the last build
         for _ in range(substeps):
-            wp.utils.radix_sort_pairs(search.keys, search.values, search.slot_count, end_bit=search.table_bits + 1)
+            search.sort()
 
     def lists():
         # the scan alone, on the slots of the last build (inputs unchanged between launches)
@@ -180,7 +181,7 @@ def pass_breakdown(solver, collision, states, contacts, substeps: int, iteration
         "100 x one-line kernel over the fluid (cost of a node)": copies,
         "100 x capture_if on a zero flag (cost of a skipped conditional node)": conditionals,
         "neighbour build": neighbors,
-        "radix sort of the keys": sorts,
+        "sort of the keys": sorts,
         "neighbour list scan": lists,
         "density passes": density,
         "finish (viscosity, recovery)": finish,
