@@ -185,9 +185,8 @@ def _shape_distance(shape_type: int, scale: wp.vec3, p: wp.vec3):
 @wp.kernel
 def advect_diffuse_particles(
     params: wp.array[FluidParams],
-    keys: wp.array[wp.int32],
-    cell_start: wp.array[wp.int32],
-    cell_end: wp.array[wp.int32],
+    cell_offset: wp.array[wp.int32],
+    cell_count: wp.array[wp.int32],
     sorted_xm: wp.array[wp.vec4],
     sorted_v: wp.array[wp.vec3],
     sorted_world: wp.array[wp.int32],
@@ -219,7 +218,6 @@ def advect_diffuse_particles(
     x = buffers.position[k]
     v = buffers.velocity[k]
     world = buffers.world[k]
-    slot_count = sorted_world.shape[0]
     c = fluid_cell(x, inv_cell)
     # a world without fluid has no block in the table: nothing to scan
     scan = world >= -1 and ((world + 1) << cell_bits) <= table_mask
@@ -232,11 +230,9 @@ def advect_diffuse_particles(
         dy = (cell // 3) % 3 - 1
         dz = cell // 9 - 1
         key = fluid_cell_hash(c[0] + dx, c[1] + dy, c[2] + dz, world, cell_bits)
-        start = cell_start[key]
-        if start >= slot_count or keys[start] != key:
-            continue
+        start = cell_offset[key]
         # slots of one cell are contiguous: these reads are coalesced
-        for j in range(start, cell_end[key]):
+        for j in range(start, start + cell_count[key]):
             if sorted_world[j] == _NO_WORLD:
                 continue
             xj4 = sorted_xm[j]

@@ -13,8 +13,7 @@ Once per substep, after prediction:
    entry's first slot, every particle goes to its entry's first slot plus its rank, and each
    entry's slots are then put in fluid-index order (the ranks arrive in any order on a GPU), so
    particles of one cell of one world are contiguous and the order is the same on every run; the
-   cell ranges are marked in the table (never cleared: a stale entry is recognised because its
-   key does not occur in the sorted keys);
+   counts and first slots of the table are the cell ranges (an empty entry counts 0);
 3. positions, masses and worlds are gathered into slot order; each slot then scans the 27
    cells around it and keeps the slots of the same world closer than ``h``.
 
@@ -155,26 +154,17 @@ def gather_fluid_slots(
     particle_q: wp.array[wp.vec3],
     particle_mass: wp.array[float],
     particle_world: wp.array[wp.int32],
-    slot_count: int,
     mask: int,
     # outputs
-    cell_start: wp.array[wp.int32],
-    cell_end: wp.array[wp.int32],
     sorted_particle: wp.array[wp.int32],
     sorted_xm: wp.array[wp.vec4],
     sorted_world: wp.array[wp.int32],
     slot_of_particle: wp.array[wp.int32],
 ):
-    """Mark where each occupied cell's slots begin and end, and gather the particles into slot order."""
+    """Gather the particles into slot order."""
     i = wp.tid()
     pi = fluid_particle[values[i]]
-    key = keys[i]
-    if key <= mask:
-        if i == 0 or keys[i - 1] != key:
-            cell_start[key] = i
-        if i == slot_count - 1 or keys[i + 1] != key:
-            cell_end[key] = i + 1
-    if key > mask:
+    if keys[i] > mask:
         sorted_particle[i] = -1
         sorted_world[i] = _NO_WORLD
         slot_of_particle[pi] = -1
@@ -188,11 +178,10 @@ def gather_fluid_slots(
 
 @wp.kernel
 def build_fluid_neighbor_lists(
-    keys: wp.array[wp.int32],
     sorted_xm: wp.array[wp.vec4],
     sorted_world: wp.array[wp.int32],
-    cell_start: wp.array[wp.int32],
-    cell_end: wp.array[wp.int32],
+    cell_offset: wp.array[wp.int32],
+    cell_count: wp.array[wp.int32],
     h: float,
     inv_cell: float,
     cell_bits: int,
@@ -240,13 +229,9 @@ def build_fluid_neighbor_lists(
                 if wp.dot(gap, gap) >= h2:
                     continue
                 key = fluid_cell_hash(ci[0] + dx, ci[1] + dy, ci[2] + dz, world, cell_bits)
-                start = cell_start[key]
-                # entries are not cleared between builds: one is current iff its key occurs now,
-                # and then this build's mark pass rewrote it
-                if start >= slot_count or keys[start] != key:
-                    continue
-                end = cell_end[key]
-                for j in range(start, end):
+                # the sort's counts are exact for every entry (an empty one counts 0)
+                start = cell_offset[key]
+                for j in range(start, start + cell_count[key]):
                     if count >= stop_at:
                         break
                     candidates += 1
@@ -308,8 +293,6 @@ class FluidNeighborSearch:
             # particles per table entry (the last entry: left-out particles) and their first slot
             self.cell_count = wp.zeros(self.mask + 2, dtype=wp.int32)
             self.cell_offset = wp.zeros(self.mask + 2, dtype=wp.int32)
-            self.cell_start = wp.zeros(self.mask + 1, dtype=wp.int32)
-            self.cell_end = wp.zeros(self.mask + 1, dtype=wp.int32)
             self.sorted_particle = wp.full(n, -1, dtype=wp.int32)
             self.sorted_xm = wp.zeros(n, dtype=wp.vec4)
             self.sorted_world = wp.full(n, _NO_WORLD, dtype=wp.int32)
@@ -359,12 +342,9 @@ class FluidNeighborSearch:
                 particle_q,
                 particle_mass,
                 particle_world,
-                n,
                 self.mask,
             ],
             outputs=[
-                self.cell_start,
-                self.cell_end,
                 self.sorted_particle,
                 self.sorted_xm,
                 self.sorted_world,
@@ -408,11 +388,10 @@ class FluidNeighborSearch:
             build_fluid_neighbor_lists,
             dim=self.slot_count,
             inputs=[
-                self.keys,
                 self.sorted_xm,
                 self.sorted_world,
-                self.cell_start,
-                self.cell_end,
+                self.cell_offset,
+                self.cell_count,
                 self.smoothing_length,
                 self.inv_cell,
                 self.cell_bits,

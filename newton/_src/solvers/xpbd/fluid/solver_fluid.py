@@ -155,11 +155,11 @@ def fluid_memory_bytes(fluid_count: int, particle_count: int, neighbor_capacity:
     """Device memory the fluid solve allocates [bytes] (render particles, allocated on first use, excluded).
 
     Per fluid particle: the neighbour list (4 bytes a slot), the sort's keys, ranks, sorted keys
-    and values (16 bytes), the cell table (at least two entries a particle: start, end, count and
-    offset, 32 bytes) and about 76 bytes of per-slot state; per model particle, two 4-byte maps;
-    per diffuse particle, 28 bytes.
+    and values (16 bytes), the cell table (at least two entries a particle: count and first slot,
+    16 bytes) and about 76 bytes of per-slot state; per model particle, two 4-byte maps; per
+    diffuse particle, 28 bytes.
     """
-    per_fluid = 4 * neighbor_capacity + 16 + 32 + 32 + 76
+    per_fluid = 4 * neighbor_capacity + 16 + 16 + 32 + 76
     return int(fluid_count * per_fluid + 8 * particle_count + 28 * diffuse)
 
 
@@ -577,9 +577,8 @@ class FluidSolver:
             block_dim=DIFFUSE_BLOCK_DIM,
             inputs=[
                 self.params,
-                s.keys,
-                s.cell_start,
-                s.cell_end,
+                s.cell_offset,
+                s.cell_count,
                 s.sorted_xm,
                 self.sorted_v,
                 s.sorted_world,
