@@ -151,18 +151,18 @@ def pass_breakdown(solver, collision, states, contacts, substeps: int, iteration
         for _ in range(substeps):
             collision.collide(states[0], contacts)
 
+    def copy_once():
+        wp.launch(copy_vec3, dim=fluid.fluid_count, inputs=[states[0].particle_q], outputs=[deltas], device=device)
+
     def copies():
         for _ in range(100):
-            wp.launch(copy_vec3, dim=fluid.fluid_count, inputs=[states[0].particle_q], outputs=[deltas], device=device)
+            copy_once()
 
     off = wp.zeros(1, dtype=wp.int32, device=device)
 
     def conditionals():
         for _ in range(100):
-            wp.capture_if(off, on_true=copies_once)
-
-    def copies_once():
-        wp.launch(copy_vec3, dim=fluid.fluid_count, inputs=[states[0].particle_q], outputs=[deltas], device=device)
+            wp.capture_if(off, on_true=copy_once)
 
     search = fluid.search
 

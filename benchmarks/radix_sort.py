@@ -18,29 +18,16 @@ from __future__ import annotations
 import argparse
 import json
 import platform
-import statistics
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import warp as wp
 
+# benchmarks/ is on the path of a script run from it
+from dam_break import graph_ms
 
-def graph_us(body, repeats: int, replays: int = 30) -> float:
-    """Median microseconds of one of ``repeats`` calls of ``body`` captured in one graph."""
-    body()
-    with wp.ScopedCapture() as capture:
-        for _ in range(repeats):
-            body()
-    times = []
-    for _ in range(replays):
-        wp.synchronize()
-        t0 = time.perf_counter()
-        wp.capture_launch(capture.graph)
-        wp.synchronize()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times) * 1.0e6 / repeats
+SORTS_PER_GRAPH = 8
 
 
 def main(argv=None):
@@ -74,7 +61,15 @@ def main(argv=None):
                 restore()
                 wp.utils.radix_sort_pairs(keys, values, n, end_bit=bits)
 
-            us = graph_us(restore_and_sort, 8) - graph_us(restore, 8)
+            def sorts(body=restore_and_sort):
+                for _ in range(SORTS_PER_GRAPH):
+                    body()
+
+            def restores(body=restore):
+                for _ in range(SORTS_PER_GRAPH):
+                    body()
+
+            us = (graph_ms(device, sorts) - graph_ms(device, restores)) * 1000.0 / SORTS_PER_GRAPH
             rows.append({"bits": bits, "us_per_sort": us})
             print(f"{device.name:<24}{n:>8}{bits:>6}{us:>10.1f}")
     result = {

@@ -615,10 +615,7 @@ class FluidRendererGL:
         gl.glBindVertexArray(self._empty_vao)
         gl.glDrawArrays(gl.GL_TRIANGLES, 0, 3)
         prog.stop()
-        for unit in range(6):
-            gl.glActiveTexture(gl.GL_TEXTURE0 + unit)
-            gl.glBindTexture(gl.GL_TEXTURE_2D, 0)
-        gl.glActiveTexture(gl.GL_TEXTURE0)
+        _unbind_textures(gl, 6)
         gl.glDepthFunc(gl.GL_LESS)
         timer.mark("shade")
 
@@ -734,10 +731,7 @@ class FluidRendererGL:
             _uniform1f(gl, prog, "fade_length", m.fade_length)
             self._draw_batch(gl, batch)
         prog.stop()
-        for unit in range(2):
-            gl.glActiveTexture(gl.GL_TEXTURE0 + unit)
-            gl.glBindTexture(gl.GL_TEXTURE_2D, 0)
-        gl.glActiveTexture(gl.GL_TEXTURE0)
+        _unbind_textures(gl, 2)
         gl.glDisable(gl.GL_BLEND)
         gl.glDepthMask(gl.GL_TRUE)
 
@@ -924,3 +918,11 @@ def _loc(gl, prog, name):
 
 def _uniform1f(gl, prog, name, value):
     gl.glUniform1f(_loc(gl, prog, name), float(value))
+
+
+def _unbind_textures(gl, units: int):
+    """Unbind the 2D textures of units ``0 .. units - 1`` a pass used, leaving unit 0 active."""
+    for unit in range(units):
+        gl.glActiveTexture(gl.GL_TEXTURE0 + unit)
+        gl.glBindTexture(gl.GL_TEXTURE_2D, 0)
+    gl.glActiveTexture(gl.GL_TEXTURE0)
