@@ -134,7 +134,8 @@ def pass_breakdown(solver, collision, states, contacts, substeps: int, iteration
 
     def neighbors():
         for _ in range(substeps):
-            fluid.build_neighborhood(states[0].particle_q)
+            # with the travel limit, as after prediction (states[1] stands in for the start of the substep)
+            fluid.build_neighborhood(states[0].particle_q, states[1].particle_q, states[0].particle_qd)
 
     def density():
         fluid.contacts = contacts

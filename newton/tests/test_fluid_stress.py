@@ -185,6 +185,43 @@ def test_empty_and_inactive_fluid(test, device):
     test.assertEqual(stats["mean_abs_density_error"], 0.0)
 
 
+def test_pool_of_inactive_fluid_costs_little(test, device):
+    # a scene that keeps inactive fluid particles in reserve (an emitter's pool): they sort into one
+    # left-out entry, which must not be ordered one by one (on a GPU that took 30 s per build for
+    # 50,000 of them, docs/performance.md)
+    import time  # noqa: PLC0415
+
+    pool = 20000
+    builder = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))
+    add_block(builder, (5, 5, 5), origin=(0.0, 0.0, 0.5))
+    builder.add_particles(
+        [(0.0, 0.0, -1.0 - 1.0e-4 * k) for k in range(pool)],
+        [(0.0, 0.0, 0.0)] * pool,
+        [MASS] * pool,
+        [0.5 * D] * pool,
+        flags=[int(newton.ParticleFlags.FLUID)] * pool,
+    )
+    model = builder.finalize(device=device)
+    sim = Sim(model)
+    fluid = sim.solver._fluid
+    q = sim.state_0.particle_q
+    fluid.build_neighborhood(q)
+    wp.synchronize_device(device)
+    times = []
+    for _ in range(5):
+        t0 = time.perf_counter()
+        fluid.build_neighborhood(q)
+        wp.synchronize_device(device)
+        times.append(time.perf_counter() - t0)
+    test.assertLess(sorted(times)[2], 0.2)
+    q0 = sim.q()
+    sim.step(3)
+    q1 = sim.q()
+    np.testing.assert_array_equal(q1[125:], q0[125:])
+    test.assertTrue(np.isfinite(q1).all())
+    test.assertLess(q1[:125, 2].mean(), q0[:125, 2].mean())
+
+
 def test_world_without_fluid_is_untouched(test, device):
     def world(fluid):
         b = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))

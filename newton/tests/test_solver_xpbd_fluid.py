@@ -456,7 +456,18 @@ def test_parameters_change_captured_graph(test, device):
         spread.setdefault(nu, []).append(np.linalg.norm(qd - qd.mean(axis=0), axis=1).mean())
     test.assertLess(spread[0.8][0], 0.5 * spread[0.0][0])
     test.assertAlmostEqual(spread[0.0][0], spread[0.0][1], places=6)
-    # the displacement limit is a conditional pass too: on, then off again, in the same graph
+    # vorticity confinement, switched on from 0 and off again: the captured pass reads the value on the device
+    vorticity = {}
+    for eps in (0.0, 2.0, 0.0):
+        sim.solver.fluid_vorticity = eps
+        sim.state_0.particle_q.assign(model.particle_q)
+        sim.state_0.particle_qd.assign(v)
+        wp.capture_launch(capture.graph)
+        vorticity.setdefault(eps, []).append(sim.qd())
+    test.assertGreater(np.abs(vorticity[2.0][0] - vorticity[0.0][0]).max(), 1.0e-3)
+    np.testing.assert_array_equal(vorticity[0.0][0], vorticity[0.0][1])
+    sim.solver.fluid_vorticity = 0.0
+    # the displacement limit, on, then off again, in the same graph
     sim.solver.fluid_viscosity = 0.0
     travel = {}
     for limit in (0.05, float("inf")):

@@ -203,8 +203,7 @@ def activate(xpbd_module) -> None:
     def integrate_particles(self, model, state_in, state_out, dt):
         upstream_integrate(self, model, state_in, state_out, dt)
         if self._fluid is not None:
-            self._fluid.limit_prediction(state_in, state_out)
-            self._fluid.build_neighborhood(state_out.particle_q)
+            self._fluid.build_neighborhood(state_out.particle_q, state_in.particle_q, state_out.particle_qd)
 
     def _apply_particle_deltas(self, model, state_in, state_out, particle_deltas, dt):
         if self._fluid is not None:

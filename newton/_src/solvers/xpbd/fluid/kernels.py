@@ -30,6 +30,9 @@ COINCIDENT_FRACTION = 1.0e-5
 # bins of the compression sum of density sub-iterations: spreads the atomics over several addresses
 COMPRESSION_BINS = 64
 
+# FluidParams.max_displacement at and above this means no limit
+MAX_DISPLACEMENT_OFF = 1.0e30
+
 
 @wp.struct
 class FluidParams:
@@ -204,18 +207,29 @@ def gather_fluid_positions(
     slots.xm[i] = wp.vec4(x[0], x[1], x[2], particle_mass[pi])
 
 
+@wp.func
+def velocity_pass_on(p: FluidParams):
+    """Whether the viscosity pass runs: for viscosity, or for the vorticity estimate of confinement."""
+    return p.viscosity > 0.0 or p.vorticity > 0.0
+
+
 @wp.kernel
 def gather_fluid_state(
+    params: wp.array[FluidParams],
     slots: FluidSlots,
     particle_q: wp.array[wp.vec3],
     particle_qd: wp.array[wp.vec3],
     particle_mass: wp.array[float],
+    for_velocity_pass: int,
     # outputs
     sorted_v: wp.array[wp.vec3],
 ):
+    """Gather positions, masses and velocities into slot order (for the velocity pass: only if it runs)."""
     i = wp.tid()
     pi = slots.particle[i]
     if pi < 0:
+        return
+    if for_velocity_pass != 0 and not velocity_pass_on(params[0]):
         return
     x = particle_q[pi]
     slots.xm[i] = wp.vec4(x[0], x[1], x[2], particle_mass[pi])
@@ -373,6 +387,9 @@ def apply_fluid_viscosity(
     if pi < 0:
         return
     p = params[0]
+    # checked here rather than by a conditional graph node, which costs more than this launch
+    if not velocity_pass_on(p):
+        return
     compute_vorticity = p.vorticity > 0.0
     xi4 = slots.xm[i]
     xi = wp.vec3(xi4[0], xi4[1], xi4[2])
@@ -417,6 +434,8 @@ def apply_vorticity_confinement(
     if pi < 0:
         return
     p = params[0]
+    if p.vorticity <= 0.0:
+        return
     xi4 = slots.xm[i]
     xi = wp.vec3(xi4[0], xi4[1], xi4[2])
     eta = wp.vec3(0.0)
@@ -601,31 +620,6 @@ def recover_nonfinite_fluid(
         particle_q[pi] = last_finite_q[k]
         particle_qd[pi] = wp.vec3(0.0)
         wp.atomic_add(nonfinite_count, 0, 1)
-
-
-@wp.kernel
-def limit_fluid_displacement(
-    params: wp.array[FluidParams],
-    fluid_particle: wp.array[wp.int32],
-    particle_flags: wp.array[wp.int32],
-    particle_q_start: wp.array[wp.vec3],
-    # in/out
-    particle_q: wp.array[wp.vec3],
-    particle_qd: wp.array[wp.vec3],
-):
-    """Shorten a fluid particle's predicted travel to ``max_displacement`` (its velocity by the same factor)."""
-    k = wp.tid()
-    pi = fluid_particle[k]
-    if (particle_flags[pi] & ParticleFlags.ACTIVE) == 0:
-        return
-    x0 = particle_q_start[pi]
-    d = particle_q[pi] - x0
-    travel = wp.length(d)
-    limit = params[0].max_displacement
-    if travel > limit:
-        scale = limit / travel
-        particle_q[pi] = x0 + d * scale
-        particle_qd[pi] = particle_qd[pi] * scale
 
 
 @wp.kernel

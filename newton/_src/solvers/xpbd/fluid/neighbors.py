@@ -34,7 +34,7 @@ import numpy as np
 import warp as wp
 
 from ....geometry import ParticleFlags
-from .kernels import FluidSlots
+from .kernels import MAX_DISPLACEMENT_OFF, FluidParams, FluidSlots
 
 # sentinel world index of a slot with no particle; real world indices are >= -1
 _NO_WORLD = -2
@@ -76,21 +76,44 @@ def fluid_cell(x: wp.vec3, inv_cell: float):
 @wp.kernel
 def compute_fluid_cell_keys(
     fluid_particle: wp.array[wp.int32],
-    particle_q: wp.array[wp.vec3],
     particle_flags: wp.array[wp.int32],
     particle_world: wp.array[wp.int32],
+    params: wp.array[FluidParams],
+    particle_q_start: wp.array[wp.vec3],
+    limit_travel: int,
     inv_cell: float,
     cell_bits: int,
     mask: int,
+    # in/out
+    particle_q: wp.array[wp.vec3],
+    particle_qd: wp.array[wp.vec3],
     # outputs
     keys: wp.array[wp.int32],
 ):
+    """Table entry of each fluid particle's cell.
+
+    With ``limit_travel``, first shorten the particle's travel from ``particle_q_start`` to
+    ``params[0].max_displacement`` (its velocity by the same factor): done here rather than in a pass of
+    its own, the limit costs no graph node of its own, and nothing while it is off.
+    """
     k = wp.tid()
     pi = fluid_particle[k]
+    active = (particle_flags[pi] & ParticleFlags.ACTIVE) != 0
     x = particle_q[pi]
+    if active and limit_travel != 0:
+        limit = params[0].max_displacement
+        if limit < MAX_DISPLACEMENT_OFF:
+            x0 = particle_q_start[pi]
+            d = x - x0
+            travel = wp.length(d)
+            if travel > limit:
+                scale = limit / travel
+                x = x0 + d * scale
+                particle_q[pi] = x
+                particle_qd[pi] = particle_qd[pi] * scale
     key = mask + 1
     # a cell index must fit in int32; farther particles are left out of the fluid solve this substep
-    if (particle_flags[pi] & ParticleFlags.ACTIVE) != 0 and wp.isfinite(x) and wp.length(x) * inv_cell < 1.0e9:
+    if active and wp.isfinite(x) and wp.length(x) * inv_cell < 1.0e9:
         c = fluid_cell(x, inv_cell)
         key = fluid_cell_hash(c[0], c[1], c[2], particle_world[pi], cell_bits)
     keys[k] = key
@@ -128,13 +151,19 @@ def order_fluid_cells(
     keys: wp.array[wp.int32],
     cell_offset: wp.array[wp.int32],
     cell_count: wp.array[wp.int32],
+    mask: int,
     # in/out
     values: wp.array[wp.int32],
 ):
-    """Order each cell's slots by fluid index (the atomic ranks of the scatter arrive in any order)."""
+    """Order each cell's slots by fluid index (the atomic ranks of the scatter arrive in any order).
+
+    The left-out particles' entry is not ordered: they take no part in the solve, and one thread
+    ordering them (an insertion sort) would take time quadratic in their number, which is large
+    when a scene keeps a pool of inactive fluid particles.
+    """
     i = wp.tid()
     key = keys[i]
-    if cell_offset[key] != i:
+    if key > mask or cell_offset[key] != i:
         return
     end = i + cell_count[key]
     for a in range(i + 1, end):
@@ -309,26 +338,40 @@ class FluidNeighborSearch:
         self.slots.neighbor_count = self.neighbor_count
         self.slots.capacity = self.capacity
 
-    def build(self, particle_q: wp.array, particle_mass: wp.array, particle_flags: wp.array, particle_world: wp.array):
+    def build(
+        self,
+        particle_q: wp.array,
+        particle_mass: wp.array,
+        particle_flags: wp.array,
+        particle_world: wp.array,
+        params: wp.array,
+        particle_q_start: wp.array | None = None,
+        particle_qd: wp.array | None = None,
+    ):
         """Sort the fluid particles at ``particle_q`` and rebuild all neighbour lists (no allocation, no sync).
 
+        With ``particle_q_start`` (and ``particle_qd``), each fluid particle's travel from there is first
+        limited to ``params[0].max_displacement`` in place (see :func:`compute_fluid_cell_keys`).
         Afterwards :attr:`sorted_xm` holds the positions and masses at ``particle_q`` in slot order.
         """
         n = self.slot_count
         device = particle_q.device
+        limit = particle_q_start is not None
         wp.launch(
             compute_fluid_cell_keys,
             dim=n,
             inputs=[
                 self.fluid_particle,
-                particle_q,
                 particle_flags,
                 particle_world,
+                params,
+                particle_q_start if limit else particle_q,
+                int(limit),
                 self.inv_cell,
                 self.cell_bits,
                 self.mask,
             ],
-            outputs=[self.cell_keys],
+            outputs=[particle_q, particle_qd if limit else particle_q, self.cell_keys],
             device=device,
         )
         self.sort()
@@ -377,7 +420,7 @@ class FluidNeighborSearch:
         wp.launch(
             order_fluid_cells,
             dim=n,
-            inputs=[self.keys, self.cell_offset, self.cell_count],
+            inputs=[self.keys, self.cell_offset, self.cell_count, self.mask],
             outputs=[self.values],
             device=device,
         )
