@@ -141,7 +141,6 @@ def pass_breakdown(solver, collision, states, contacts, substeps: int, iteration
         fluid.contacts = contacts
         for _ in range(substeps):
             fluid._slots_hold_positions = True
-            fluid._first_iteration = True
             for _ in range(iterations):
                 fluid.solve_density(states[0].particle_q, deltas)
 

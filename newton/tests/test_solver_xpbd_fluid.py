@@ -292,26 +292,6 @@ def test_cohesion_holds_droplet_and_leaves_isolated_particle(test, device):
     test.assertLess(spreads[1.0], 5.0 * D)
 
 
-def test_cohesion_once_per_substep(test, device):
-    # a pair between the rest distance and h attracts; the density constraint does not act on it
-    # (under-dense), so what moves it is the cohesion bias alone: once per substep, whatever the
-    # number of XPBD iterations (it grew with them until 2026-11-23)
-    def build(b):
-        for x in (0.0, 1.5 * D):
-            b.add_particle(pos=wp.vec3(x, 0.0, 0.0), vel=wp.vec3(0.0), mass=MASS, radius=0.5 * D, flags=FLUID)
-
-    gaps = {}
-    for iterations in (1, 2, 4):
-        sim = Sim(make_model(device, build), substeps=1, iterations=iterations, fluid_cohesion=1.0)
-        sim.step(1)
-        q = sim.q()
-        gaps[iterations] = q[1, 0] - q[0, 0]
-        test.assertAlmostEqual(q[0, 0] + q[1, 0], 1.5 * D, delta=1.0e-6)  # the pair's momentum
-    test.assertLess(gaps[1], 1.5 * D - 1.0e-4)
-    test.assertAlmostEqual(gaps[2], gaps[1], delta=1.0e-6)
-    test.assertAlmostEqual(gaps[4], gaps[1], delta=1.0e-6)
-
-
 def test_viscosity_lowers_relative_velocity(test, device):
     rng = np.random.default_rng(1)
     spread = {}

@@ -50,7 +50,7 @@ class FluidParams:
     relaxation: float
     max_correction: float  # bound of one iteration's density correction [m]
     max_displacement: float  # bound of a fluid particle's travel in one substep [m]
-    cohesion: float  # per-substep cohesion displacement scale [m]
+    cohesion: float  # per-iteration cohesion displacement scale [m]
     cohesion_u0: float  # zero of Akinci's spline, as a fraction of h
     cohesion_in: float  # u0 / rest distance [1/m]
     cohesion_out: float  # (1 - u0) / (h - rest distance) [1/m]
@@ -173,7 +173,6 @@ def correction_term(
     sorted_particle: wp.array[wp.int32],
     j: int,
     p: FluidParams,
-    with_cohesion: bool,
 ):
     """Neighbour ``j``'s density correction (top) and unscaled cohesion pull (bottom) on slot ``i``."""
     r = wp.vec3(xi4[0] - xj4[0], xi4[1] - xj4[1], xi4[2] - xj4[2])
@@ -188,7 +187,7 @@ def correction_term(
     share = 2.0 * xj4[3] / (xi4[3] + xj4[3])
     dx = n * (p.spiky_grad * d * d * (lam_i + lam_j) * p.reference_mass * p.inv_rest_density * share)
     coh = wp.vec3(0.0)
-    if with_cohesion:
+    if p.cohesion > 0.0:
         coh = n * (-share * akinci_cohesion(dist, p))
     return wp.spatial_vector(dx, coh)
 
@@ -307,21 +306,15 @@ def apply_fluid_density_correction(
     lambdas: wp.array[float],
     particle_inv_mass: wp.array[float],
     keep_walls: int,
-    first_iteration: int,
-    subpass: wp.array[wp.int32],
     # outputs
     particle_deltas: wp.array[wp.vec3],
     slot_dx: wp.array[wp.vec3],
     wall_c: wp.array[float],
     wall_grad: wp.array[wp.vec3],
 ):
-    """Add the density correction of slot ``i``, and once per substep its cohesion bias, to its particle's Jacobi delta.
+    """Add the density correction and the cohesion bias of slot ``i`` to its particle's Jacobi delta.
 
-    The cohesion bias is added in the first pass of the substep's first XPBD iteration only
-    (``first_iteration`` set and ``subpass[0]``, the number of this density pass within the
-    iteration, at most 1), so the passes after it correct the compression it causes and its
-    strength does not grow with the iteration count. The correction is also written to ``slot_dx``
-    (for density sub-iterations). Unless
+    The correction is also written to ``slot_dx`` (for density sub-iterations). Unless
     ``keep_walls`` is set, the slot's wall share, which this pass has used, is cleared for the next
     accumulation (also while ``active[0]`` is 0, when the pass does nothing else).
     """
@@ -340,7 +333,6 @@ def apply_fluid_density_correction(
         slot_dx[i] = wp.vec3(0.0)
         return
     p = params[0]
-    with_cohesion = p.cohesion > 0.0 and first_iteration != 0 and subpass[0] <= 1
     xi4 = slots.xm[i]
     lam_i = lambdas[i]
     acc = wp.spatial_vector(wp.vec3(0.0), wp.vec3(0.0))
@@ -350,19 +342,19 @@ def apply_fluid_density_correction(
     while k + 1 < count:
         j0 = fluid_neighbor(slots, i, k)
         j1 = fluid_neighbor(slots, i, k + 1)
-        acc += correction_term(xi4, lam_i, slots.xm[j0], lambdas[j0], pi, slots.particle, j0, p, with_cohesion)
-        acc += correction_term(xi4, lam_i, slots.xm[j1], lambdas[j1], pi, slots.particle, j1, p, with_cohesion)
+        acc += correction_term(xi4, lam_i, slots.xm[j0], lambdas[j0], pi, slots.particle, j0, p)
+        acc += correction_term(xi4, lam_i, slots.xm[j1], lambdas[j1], pi, slots.particle, j1, p)
         k += 2
     if k < count:
         j = fluid_neighbor(slots, i, k)
-        acc += correction_term(xi4, lam_i, slots.xm[j], lambdas[j], pi, slots.particle, j, p, with_cohesion)
+        acc += correction_term(xi4, lam_i, slots.xm[j], lambdas[j], pi, slots.particle, j, p)
     dx = wp.spatial_top(acc) + wall_g * lam_i
     coh = wp.spatial_bottom(acc)
     dx *= p.relaxation
     dx_len = wp.length(dx)
     if dx_len > p.max_correction:
         dx *= p.max_correction / dx_len
-    if with_cohesion:
+    if p.cohesion > 0.0:
         # the bias is bounded so a crowded neighbourhood cannot pull harder than one rest spacing allows
         coh *= p.cohesion
         coh_len = wp.length(coh)

@@ -55,10 +55,8 @@ DEFAULT_SMOOTHING_RATIO = 1.8
 MAX_CORRECTION_FRACTION = 0.5
 # lambda regulariser relative to sum |grad C|^2 of the rest lattice (constraint softening ~1e-3)
 EPSILON_RELATIVE = 1.0e-3
-# cohesion 1 moves a surface particle by at most ~this fraction of the rest distance per substep
-# (applied once per substep; until 2026-11-23 it was 0.0025 in every XPBD iteration, and 2 iterations
-# are the default)
-COHESION_DISPLACEMENT = 0.005
+# cohesion 1 moves a surface particle by at most ~this fraction of the rest distance per iteration
+COHESION_DISPLACEMENT = 0.0025
 # neighbours stored per particle for fluid_max_neighbors=0, as a multiple of the rest-lattice count
 FULL_NEIGHBOR_FACTOR = 4
 # samples of the wall density tables over [0, h]
@@ -281,8 +279,6 @@ class FluidSolver:
             # state of the density sub-iteration loop: an "always on" flag for the single pass,
             # and the loop's flag, correction count, compression bins and a total for diagnostics
             self._always_active = wp.ones(1, dtype=wp.int32)
-            # the density pass of an iteration without sub-iterations is its first and only
-            self._single_pass = wp.ones(1, dtype=wp.int32)
             # tolerance mode with one pass per iteration: cleared once a substep's density has converged
             self._substep_active = wp.ones(1, dtype=wp.int32)
             self.tolerance_mode = config.fluid_max_iterations > 1 or config.fluid_density_tolerance > 0.0
@@ -304,7 +300,6 @@ class FluidSolver:
             self.particle_density = wp.zeros(model.particle_count, dtype=float)
             self._summary = wp.zeros(_SUMMARY_SIZE, dtype=float)
         self._slots_hold_positions = False
-        self._first_iteration = False
         self.diffuse = None
         if config.max_diffuse_particles > 0:
             c = config.max_diffuse_particles
@@ -392,8 +387,6 @@ class FluidSolver:
             self._substep_active.fill_(1)
         # the build gathered these positions into slot order: the first iteration uses them as they are
         self._slots_hold_positions = True
-        # the substep's cohesion bias goes with its first iteration's density correction
-        self._first_iteration = True
 
     def solve_density(self, particle_q: wp.array, particle_deltas: wp.array) -> None:
         """The density constraint of one XPBD iteration: add its correction to ``particle_deltas``.
@@ -428,8 +421,7 @@ class FluidSolver:
                     outputs=[self._compression_bins, active, self.subiterations_total],
                     device=self.device,
                 )
-            self._correct(particle_deltas, active, keep_walls=False, subpass=self._single_pass)
-            self._first_iteration = False
+            self._correct(particle_deltas, active, keep_walls=False)
             return
         wp.launch(
             begin_fluid_subiterations,
@@ -442,7 +434,6 @@ class FluidSolver:
         else:
             for _ in range(self.config.fluid_max_iterations):
                 self._density_subiteration(particle_deltas)
-        self._first_iteration = False
         if self._has_walls:
             self.wall_c.zero_()
             self.wall_grad.zero_()
@@ -462,25 +453,15 @@ class FluidSolver:
         self._evaluate_constraint(active, track_compression=True)
         # ... or once the compression is within the tolerance
         wp.launch(decide_fluid_subiteration, dim=1, inputs=[*decide, 1], outputs=loop, device=self.device)
-        # the loop's count of corrections: 1 in its first pass
-        self._correct(particle_deltas, active, keep_walls=True, subpass=self._loop_count)
+        self._correct(particle_deltas, active, keep_walls=True)
         wp.launch(advance_fluid_slots, dim=n, inputs=[s.slots, active, self.slot_dx], device=self.device)
 
-    def _correct(self, particle_deltas: wp.array, active: wp.array, keep_walls: bool, subpass: wp.array) -> None:
+    def _correct(self, particle_deltas: wp.array, active: wp.array, keep_walls: bool) -> None:
         m = self.model
         wp.launch(
             apply_fluid_density_correction,
             dim=self.fluid_count,
-            inputs=[
-                self.params,
-                self.search.slots,
-                active,
-                self.lambdas,
-                m.particle_inv_mass,
-                int(keep_walls),
-                int(self._first_iteration),
-                subpass,
-            ],
+            inputs=[self.params, self.search.slots, active, self.lambdas, m.particle_inv_mass, int(keep_walls)],
             outputs=[particle_deltas, self.slot_dx, self.wall_c, self.wall_grad],
             device=self.device,
         )
