@@ -7,6 +7,7 @@ Small scenes (CPU always, CUDA when present); the measured boundaries are in doc
 (``benchmarks/stability_map.py``).
 """
 
+import time
 import unittest
 import warnings
 
@@ -189,8 +190,6 @@ def test_pool_of_inactive_fluid_costs_little(test, device):
     # a scene that keeps inactive fluid particles in reserve (an emitter's pool): they sort into one
     # left-out entry, which must not be ordered one by one (on a GPU that took 30 s per build for
     # 50,000 of them, docs/performance.md)
-    import time  # noqa: PLC0415
-
     pool = 20000
     builder = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))
     add_block(builder, (5, 5, 5), origin=(0.0, 0.0, 0.5))

@@ -446,12 +446,17 @@ def test_parameters_change_captured_graph(test, device):
     sim = Sim(model, fluid_viscosity=0.0)
     with wp.ScopedCapture(device=device) as capture:
         sim.step(1)  # an even number of substeps: state_0 is the graph's input and output
+
+    def replay(name, value, velocities):
+        """Set one parameter, restart from the initial positions at ``velocities``, replay the graph."""
+        setattr(sim.solver, name, value)
+        sim.state_0.particle_q.assign(model.particle_q)
+        sim.state_0.particle_qd.assign(velocities)
+        wp.capture_launch(capture.graph)
+
     spread = {}
     for nu in (0.0, 0.8, 0.0):
-        sim.solver.fluid_viscosity = nu
-        sim.state_0.particle_q.assign(model.particle_q)
-        sim.state_0.particle_qd.assign(v)
-        wp.capture_launch(capture.graph)
+        replay("fluid_viscosity", nu, v)
         qd = sim.qd()
         spread.setdefault(nu, []).append(np.linalg.norm(qd - qd.mean(axis=0), axis=1).mean())
     test.assertLess(spread[0.8][0], 0.5 * spread[0.0][0])
@@ -459,22 +464,17 @@ def test_parameters_change_captured_graph(test, device):
     # vorticity confinement, switched on from 0 and off again: the captured pass reads the value on the device
     vorticity = {}
     for eps in (0.0, 2.0, 0.0):
-        sim.solver.fluid_vorticity = eps
-        sim.state_0.particle_q.assign(model.particle_q)
-        sim.state_0.particle_qd.assign(v)
-        wp.capture_launch(capture.graph)
+        replay("fluid_vorticity", eps, v)
         vorticity.setdefault(eps, []).append(sim.qd())
     test.assertGreater(np.abs(vorticity[2.0][0] - vorticity[0.0][0]).max(), 1.0e-3)
     np.testing.assert_array_equal(vorticity[0.0][0], vorticity[0.0][1])
     sim.solver.fluid_vorticity = 0.0
     # the displacement limit, on, then off again, in the same graph
     sim.solver.fluid_viscosity = 0.0
+    fast = np.tile([5.0, 0.0, 0.0], (model.particle_count, 1)).astype(np.float32)
     travel = {}
     for limit in (0.05, float("inf")):
-        sim.solver.fluid_max_displacement = limit
-        sim.state_0.particle_q.assign(model.particle_q)
-        sim.state_0.particle_qd.assign(np.tile([5.0, 0.0, 0.0], (model.particle_count, 1)).astype(np.float32))
-        wp.capture_launch(capture.graph)
+        replay("fluid_max_displacement", limit, fast)
         travel[limit] = float(np.mean(sim.q()[:, 0] - model.particle_q.numpy()[:, 0]))
     # 4 substeps of 1/240 s at 5 m/s: 0.083 m free, 4 x 0.05 spacings limited
     test.assertAlmostEqual(travel[float("inf")], 5.0 / 60.0, delta=0.01)

@@ -11,9 +11,10 @@ Once per substep, after prediction:
 2. the keys are counting-sorted: particles are counted per table entry (an atomic add, whose
    return value is the particle's rank in its entry), a prefix sum over the table gives each
    entry's first slot, every particle goes to its entry's first slot plus its rank, and each
-   entry's slots are then put in fluid-index order (the ranks arrive in any order on a GPU), so
-   particles of one cell of one world are contiguous and the order is the same on every run; the
-   counts and first slots of the table are the cell ranges (an empty entry counts 0);
+   entry's slots (but the left-out particles') are then put in fluid-index order (the ranks
+   arrive in any order on a GPU), so particles of one cell of one world are contiguous and the
+   order is the same on every run; the counts and first slots of the table are the cell ranges
+   (an empty entry counts 0);
 3. positions, masses and worlds are gathered into slot order; each slot then scans the 27
    cells around it and keeps the slots of the same world closer than ``h``.
 
