@@ -168,21 +168,41 @@ def plot(inputs: list, reference: str | None, path: str):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt  # noqa: PLC0415
 
-    results = [json.loads(Path(p).read_text()) for p in inputs]
+    # one row per scene and device: the runs of files of the same one are drawn together
+    results = {}
+    for p in inputs:
+        result = json.loads(Path(p).read_text())
+        row = results.setdefault((result["particles"], result["device"]), {**result, "runs": []})
+        row["runs"] += result["runs"]
+    results = list(results.values())
     ref = json.loads(Path(reference).read_text()) if reference else None
-    fig, axes = plt.subplots(len(results), 2, figsize=(13, 5 * len(results)), squeeze=False)
-    metrics = (("mean_abs_density_error", "mean |rho/rho0 - 1|"), ("p99_compression", "p99 compression"))
+    metrics = (
+        ("mean_abs_density_error", "mean |rho/rho0 - 1|"),
+        ("mean_compression", "mean compression"),
+        ("p99_compression", "p99 compression"),
+    )
+    fig, axes = plt.subplots(len(results), len(metrics), figsize=(19, 5.5 * len(results)), squeeze=False)
+    # a curve per mode (and XPBD iteration count of the sub-pass modes)
+    curves = (
+        ("fixed", None, "-o", "iterations"),
+        ("tolerance", None, "--s", "tolerance on XPBD iterations"),
+        ("tolerance, sub-passes", 1, ":^", "tolerance, sub-passes in 1 iteration"),
+        ("tolerance, sub-passes", 2, "-.v", "tolerance, sub-passes in 2 iterations"),
+    )
     for row, result in zip(axes, results, strict=True):
         title = f"{result['particles']:,} particles, {result['device']}"
         for ax, (key, label) in zip(row, metrics, strict=True):
             for n, substeps in enumerate(sorted({r["substeps"] for r in result["runs"]})):
                 color = f"C{n}"
-                for mode, style in (("fixed", "-o"), ("tolerance", "--s"), ("tolerance, sub-passes", ":^")):
-                    rs = [r for r in result["runs"] if r["mode"] == mode and r["substeps"] == substeps]
+                for mode, iterations, style, name in curves:
+                    rs = [
+                        r
+                        for r in result["runs"]
+                        if r["mode"] == mode and r["substeps"] == substeps and iterations in (None, r["iterations"])
+                    ]
                     rs.sort(key=lambda r: r["ms_per_frame"])
                     if not rs:
                         continue
-                    name = "iterations" if mode == "fixed" else mode
                     ax.plot(
                         [r["ms_per_frame"] for r in rs],
                         [r[key] for r in rs],
@@ -230,7 +250,9 @@ def main(argv=None):
     parser.add_argument("--t-end", type=float, default=1.5, help="simulated time [s]")
     parser.add_argument("--sample-every", type=int, default=3, help="frames between density samples")
     parser.add_argument("--substeps", type=int, nargs="+", default=[2, 4, 8])
-    parser.add_argument("--iterations", type=int, nargs="+", default=[1, 2, 4, 8])
+    parser.add_argument(
+        "--iterations", type=int, nargs="*", default=[1, 2, 4, 8], help="fixed counts (none: only the tolerance runs)"
+    )
     parser.add_argument("--tolerances", type=float, nargs="*", default=[0.01, 0.005, 0.0025, 0.001])
     parser.add_argument("--max-iterations", type=int, default=8, help="XPBD iterations of the tolerance mode")
     parser.add_argument(

@@ -10,6 +10,7 @@ import warp as wp
 from newton.tests.unittest_utils import add_function_test, get_test_devices
 
 import newton
+from newton._src.solvers.xpbd.fluid.solver_fluid import wall_density_tables
 
 FLUID = int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID)
 D = 0.1  # rest distance [m]
@@ -534,6 +535,33 @@ def test_density_subiterations_in_captured_graph(test, device):
         int(sim.solver._fluid.subiterations_total.numpy()[0]),
         int(eager.solver._fluid.subiterations_total.numpy()[0]),
     )
+
+
+def test_density_subiterations_see_the_walls_move(test, device):
+    # a compressed block on the floor expands; passes within one XPBD iteration (no contact solve
+    # between them) must measure the floor's ghost density where the last pass left the particles
+    def build(b):
+        add_block(b, (6, 6, 5), origin=(0.0, 0.0, 0.45 * D), spacing=0.9 * D)
+        b.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(mu=0.0))
+
+    model = make_model(device, build)
+    model.soft_contact_mu = 0.0
+    sim = Sim(model, substeps=1, iterations=1, contacts=True, fluid_max_iterations=4)
+    sim.step(1)
+    stats = sim.solver.fluid_diagnostics(sim.state_0)
+    test.assertEqual(stats["density_subiterations"], 4)
+    q = sim.q()
+    h = sim.solver.fluid_smoothing_length
+    # the floor's share of the density: the solver's ghost lattice, by distance from the floor
+    wall_rho, _ = wall_density_tables(D, h, MASS)
+    wall = np.interp(np.clip(q[:, 2], 0.0, h), np.linspace(0.0, h, len(wall_rho)), wall_rho)
+    compression = (sim.solver.fluid_density.numpy() + wall) / stats["rest_density"] - 1.0
+    bottom = q[:, 2] < 0.85 * D
+    test.assertEqual(np.count_nonzero(bottom), 36)
+    # measured once per iteration, the floor's share went stale: one pass pushed the bottom layer to
+    # 0.1 spacings above the floor, 18 % compressed, and the next found the fluid alone uncompressed
+    test.assertGreater(q[:, 2].min(), 0.2 * D)
+    test.assertLess(compression[bottom].max(), 0.02)
 
 
 def test_tolerance_stops_xpbd_iterations(test, device):

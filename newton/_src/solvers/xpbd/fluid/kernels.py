@@ -305,7 +305,6 @@ def apply_fluid_density_correction(
     active: wp.array[wp.int32],
     lambdas: wp.array[float],
     particle_inv_mass: wp.array[float],
-    keep_walls: int,
     # outputs
     particle_deltas: wp.array[wp.vec3],
     slot_dx: wp.array[wp.vec3],
@@ -314,19 +313,18 @@ def apply_fluid_density_correction(
 ):
     """Add the density correction and the cohesion bias of slot ``i`` to its particle's Jacobi delta.
 
-    The correction is also written to ``slot_dx`` (for density sub-iterations). Unless
-    ``keep_walls`` is set, the slot's wall share, which this pass has used, is cleared for the next
-    accumulation (also while ``active[0]`` is 0, when the pass does nothing else).
+    The correction is also written to ``slot_dx`` (for density sub-iterations). The slot's wall
+    share, which this pass has used, is cleared for the next accumulation (also while ``active[0]``
+    is 0, when the pass does nothing else).
     """
     i = wp.tid()
     pi = slots.particle[i]
     if pi < 0:
         return
     wall_g = wall_grad[i]
-    if keep_walls == 0:
-        # cleared even when the pass is skipped: the shares were accumulated for this pass only
-        wall_grad[i] = wp.vec3(0.0)
-        wall_c[i] = 0.0
+    # cleared even when the pass is skipped: the shares were accumulated for this pass only
+    wall_grad[i] = wp.vec3(0.0)
+    wall_c[i] = 0.0
     if active[0] == 0:
         return
     if particle_inv_mass[pi] == 0.0:
@@ -456,9 +454,11 @@ def apply_vorticity_confinement(
 
 
 @wp.kernel
-def begin_fluid_subiterations(loop_active: wp.array[wp.int32], loop_count: wp.array[wp.int32]):
+def begin_fluid_subiterations(loop_active: wp.array[wp.int32], loop_count: wp.array[wp.int32], bins: wp.array[float]):
     loop_active[0] = 1
     loop_count[0] = 0
+    for b in range(2 * COMPRESSION_BINS):
+        bins[b] = 0.0
 
 
 @wp.func
@@ -475,29 +475,38 @@ def summed_compression(bins: wp.array[float]):
 @wp.kernel
 def decide_fluid_subiteration(
     params: wp.array[FluidParams],
-    bins: wp.array[float],
     max_iterations: int,
-    check_tolerance: int,
     # in/out
+    bins: wp.array[float],
     loop_active: wp.array[wp.int32],
+    correct: wp.array[wp.int32],
     loop_count: wp.array[wp.int32],
     iterations_total: wp.array[wp.int32],
 ):
-    """Stop after ``max_iterations`` corrections or, with ``check_tolerance``, once the mean compression is met."""
+    """Decide whether this density pass corrects and whether another one follows.
+
+    It corrects unless the mean compression it measured is within the tolerance (or nothing is
+    compressed); the loop ends with that or after ``max_iterations`` corrections. Reads and clears
+    the pass's compression sums. Once the loop has ended (passes launched outside a graph), nothing
+    corrects.
+    """
     if loop_active[0] == 0:
-        return
-    if check_tolerance == 0:
-        if loop_count[0] >= max_iterations:
-            loop_active[0] = 0
+        correct[0] = 0
         return
     sums = summed_compression(bins)
     total = sums[0]
     count = sums[1]
+    for b in range(2 * COMPRESSION_BINS):
+        bins[b] = 0.0
     if count == 0.0 or total <= params[0].density_tolerance * count:
+        correct[0] = 0
         loop_active[0] = 0
         return
+    correct[0] = 1
     loop_count[0] = loop_count[0] + 1
     iterations_total[0] = iterations_total[0] + 1
+    if loop_count[0] >= max_iterations:
+        loop_active[0] = 0
 
 
 @wp.kernel
@@ -550,7 +559,7 @@ def accumulate_fluid_wall_density(
     active: wp.array[wp.int32],
     shape_body: wp.array[int],
     slot_of_particle: wp.array[wp.int32],
-    particle_q: wp.array[wp.vec3],
+    slots: FluidSlots,
     wall_table: wp.array[float],
     wall_table_grad: wp.array[float],
     # outputs
@@ -560,6 +569,8 @@ def accumulate_fluid_wall_density(
     """Add the density a static wall lends to a fluid particle near it, from the particle-shape contacts.
 
     ``wall_c`` and ``wall_grad`` must be zero on entry (the correction pass clears them after use).
+    The particle is taken where its slot holds it (``slots.xm``): where the current pass sees it,
+    also after earlier density passes of the same XPBD iteration have moved it.
 
     The fluid would continue beyond the wall as a lattice at rest; the tables hold that ghost
     fluid's poly6 density (over the lattice density) and its derivative against the distance
@@ -576,7 +587,8 @@ def accumulate_fluid_wall_density(
         return
     p = params[0]
     n = contact_normal[k]
-    dist = wp.max(wp.dot(n, particle_q[pi] - contact_point[k]), 0.0)
+    x4 = slots.xm[slot]
+    dist = wp.max(wp.dot(n, wp.vec3(x4[0], x4[1], x4[2]) - contact_point[k]), 0.0)
     if dist >= p.h:
         return
     u = dist / p.wall_table_step

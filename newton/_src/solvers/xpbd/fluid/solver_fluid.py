@@ -284,6 +284,7 @@ class FluidSolver:
             self.tolerance_mode = config.fluid_max_iterations > 1 or config.fluid_density_tolerance > 0.0
             self._loop_active = wp.zeros(1, dtype=wp.int32)
             self._loop_count = wp.zeros(1, dtype=wp.int32)
+            self._pass_corrects = wp.zeros(1, dtype=wp.int32)
             self._compression_bins = wp.zeros(2 * COMPRESSION_BINS, dtype=float)
             self.subiterations_total = wp.zeros(1, dtype=wp.int32)
             # static walls' share of rho / rho0 and its gradient, per slot (zero without contacts)
@@ -394,9 +395,11 @@ class FluidSolver:
         With ``fluid_max_iterations`` 1 this is one Jacobi pass (with a tolerance set at construction,
         skipped once the substep's mean compression has met it). Otherwise up to that many passes
         run on the gathered positions, each starting where the last one left them, and stop early
-        once the mean compression is at most ``fluid_density_tolerance`` (if above 0). The count is
-        decided on the device: inside a graph capture the loop is a conditional while node, outside
-        one every pass is launched and the passes after the decision do nothing (no synchronisation).
+        once the mean compression is at most ``fluid_density_tolerance`` (if above 0); each pass
+        measures the walls again where the last one left the particles. The count is decided on the
+        device: inside a graph capture the loop is a conditional while node; on a GPU outside one
+        every allowed pass is launched and the passes after the decision do nothing (no
+        synchronisation); on the CPU the loop reads its flag and stops.
         """
         s, m, n = self.search, self.model, self.fluid_count
         # with the tolerance on the XPBD iterations, a converged substep skips the rest of its passes
@@ -410,8 +413,8 @@ class FluidSolver:
             )
         # after this iteration's correction, the gathered positions are out of date
         self._slots_hold_positions = False
-        self._accumulate_walls(particle_q, active)
         if self.config.fluid_max_iterations == 1:
+            self._accumulate_walls(active)
             self._evaluate_constraint(active, track_compression=self.iteration_tolerance)
             if self.iteration_tolerance:
                 wp.launch(
@@ -421,53 +424,56 @@ class FluidSolver:
                     outputs=[self._compression_bins, active, self.subiterations_total],
                     device=self.device,
                 )
-            self._correct(particle_deltas, active, keep_walls=False)
+            self._correct(particle_deltas, active)
             return
         wp.launch(
             begin_fluid_subiterations,
             dim=1,
-            outputs=[self._loop_active, self._loop_count],
+            outputs=[self._loop_active, self._loop_count, self._compression_bins],
             device=self.device,
         )
-        if self.device.is_capturing:
+        if self.device.is_capturing or self.device.is_cpu:
+            # a conditional while node in a graph; on the CPU the flag is read where it lies
             wp.capture_while(self._loop_active, self._density_subiteration, particle_deltas=particle_deltas)
         else:
+            # no graph: launch every allowed pass (reading the flag would synchronise); the ones
+            # after the decision do nothing
             for _ in range(self.config.fluid_max_iterations):
                 self._density_subiteration(particle_deltas)
-        if self._has_walls:
-            self.wall_c.zero_()
-            self.wall_grad.zero_()
 
     def _density_subiteration(self, particle_deltas: wp.array) -> None:
         s, n = self.search, self.fluid_count
-        active = self._loop_active
-        decide = [
-            self.params,
-            self._compression_bins,
-            self.config.fluid_max_iterations,
-        ]
-        loop = [self._loop_active, self._loop_count, self.subiterations_total]
-        # stop once the allowed number of corrections is done ...
-        wp.launch(decide_fluid_subiteration, dim=1, inputs=[*decide, 0], outputs=loop, device=self.device)
-        self._compression_bins.zero_()
-        self._evaluate_constraint(active, track_compression=True)
-        # ... or once the compression is within the tolerance
-        wp.launch(decide_fluid_subiteration, dim=1, inputs=[*decide, 1], outputs=loop, device=self.device)
-        self._correct(particle_deltas, active, keep_walls=True)
-        wp.launch(advance_fluid_slots, dim=n, inputs=[s.slots, active, self.slot_dx], device=self.device)
+        # the walls are measured again where the last pass left the particles
+        self._accumulate_walls(self._loop_active)
+        self._evaluate_constraint(self._loop_active, track_compression=True)
+        wp.launch(
+            decide_fluid_subiteration,
+            dim=1,
+            inputs=[self.params, self.config.fluid_max_iterations],
+            outputs=[
+                self._compression_bins,
+                self._loop_active,
+                self._pass_corrects,
+                self._loop_count,
+                self.subiterations_total,
+            ],
+            device=self.device,
+        )
+        self._correct(particle_deltas, self._pass_corrects)
+        wp.launch(advance_fluid_slots, dim=n, inputs=[s.slots, self._pass_corrects, self.slot_dx], device=self.device)
 
-    def _correct(self, particle_deltas: wp.array, active: wp.array, keep_walls: bool) -> None:
+    def _correct(self, particle_deltas: wp.array, active: wp.array) -> None:
         m = self.model
         wp.launch(
             apply_fluid_density_correction,
             dim=self.fluid_count,
-            inputs=[self.params, self.search.slots, active, self.lambdas, m.particle_inv_mass, int(keep_walls)],
+            inputs=[self.params, self.search.slots, active, self.lambdas, m.particle_inv_mass],
             outputs=[particle_deltas, self.slot_dx, self.wall_c, self.wall_grad],
             device=self.device,
         )
 
-    def _accumulate_walls(self, particle_q: wp.array, active: wp.array) -> None:
-        """Wall density of the fluid particles at ``particle_q`` from the step's particle-shape contacts."""
+    def _accumulate_walls(self, active: wp.array) -> None:
+        """Wall density of the fluid particles where their slots hold them, from the step's particle-shape contacts."""
         contacts = self.contacts
         if not self._has_walls or contacts is None:
             return
@@ -485,7 +491,7 @@ class FluidSolver:
                 active,
                 self.model.shape_body,
                 self.search.slot_of_particle,
-                particle_q,
+                self.search.slots,
                 self.wall_table,
                 self.wall_table_grad,
             ],
