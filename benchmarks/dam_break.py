@@ -210,6 +210,7 @@ def run(args) -> dict:
         fluid_viscosity=args.viscosity,
         fluid_vorticity=0.0,
         fluid_relaxation=args.relaxation,
+        fluid_warm_start=args.warm_start,
         fluid_density_tolerance=args.density_tolerance,
         fluid_max_iterations=args.density_iterations,
         max_diffuse_particles=args.diffuse,
@@ -290,6 +291,7 @@ def run(args) -> dict:
         "iterations": args.iterations,
         "cohesion": args.cohesion,
         "relaxation": args.relaxation,
+        "fluid_warm_start": args.warm_start,
         "fluid_max_iterations": args.density_iterations,
         "fluid_density_tolerance": args.density_tolerance,
         "density_subiterations_per_substep": solver.fluid_diagnostics(states[0])["density_subiterations"]
@@ -317,6 +319,7 @@ def main(argv=None):
     parser.add_argument("--iterations", type=int, default=2)
     parser.add_argument("--cohesion", type=float, default=1.0)
     parser.add_argument("--relaxation", type=float, default=1.0)
+    parser.add_argument("--warm-start", type=float, default=0.0, help="fluid_warm_start")
     parser.add_argument("--density-iterations", type=int, default=1, help="fluid_max_iterations")
     parser.add_argument("--density-tolerance", type=float, default=0.0, help="fluid_density_tolerance")
     parser.add_argument("--viscosity", type=float, default=0.05)

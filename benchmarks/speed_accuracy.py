@@ -54,6 +54,7 @@ def run_one(args, device, substeps: int, iterations: int, tolerance: float, pass
         height=4.0 * L,
         fluid_density_tolerance=tolerance,
         fluid_max_iterations=passes,
+        fluid_warm_start=args.warm_start,
     )
     d = L / args.per_l
     rec = reference.Recorder(L, d, 1000.0 * d**3, solver.fluid_smoothing_length, args.depth * d)
@@ -96,6 +97,7 @@ def run_one(args, device, substeps: int, iterations: int, tolerance: float, pass
         "iterations": iterations,
         "fluid_max_iterations": passes,
         "fluid_density_tolerance": tolerance,
+        "fluid_warm_start": args.warm_start,
         # the passes that corrected, over every substep of the run
         "density_passes_per_substep": (
             stats["density_subiterations"] / (frames * substeps) if tolerance > 0.0 else iterations
@@ -162,6 +164,11 @@ def sweep(args) -> dict:
     return result
 
 
+def run_mode(run: dict) -> str:
+    """The run's curve: its mode, and whether it carried multipliers between substeps."""
+    return run["mode"] + (", warm start" if run.get("fluid_warm_start", 0.0) > 0.0 else "")
+
+
 def plot(inputs: list, reference: str | None, path: str):
     import matplotlib  # noqa: PLC0415
 
@@ -185,6 +192,7 @@ def plot(inputs: list, reference: str | None, path: str):
     # a curve per mode (and XPBD iteration count of the sub-pass modes)
     curves = (
         ("fixed", None, "-o", "iterations"),
+        ("fixed, warm start", None, "-D", "iterations, warm start 0.5"),
         ("tolerance", None, "--s", "tolerance on XPBD iterations"),
         ("tolerance, sub-passes", 1, ":^", "tolerance, sub-passes in 1 iteration"),
         ("tolerance, sub-passes", 2, "-.v", "tolerance, sub-passes in 2 iterations"),
@@ -198,7 +206,7 @@ def plot(inputs: list, reference: str | None, path: str):
                     rs = [
                         r
                         for r in result["runs"]
-                        if r["mode"] == mode and r["substeps"] == substeps and iterations in (None, r["iterations"])
+                        if run_mode(r) == mode and r["substeps"] == substeps and iterations in (None, r["iterations"])
                     ]
                     rs.sort(key=lambda r: r["ms_per_frame"])
                     if not rs:
@@ -209,10 +217,11 @@ def plot(inputs: list, reference: str | None, path: str):
                         style,
                         color=color,
                         label=f"{substeps} substeps, {name}",
-                        alpha=1.0 if mode == "fixed" else 0.8,
+                        alpha=1.0 if mode.startswith("fixed") else 0.8,
                     )
                     for r in rs:
-                        tag = str(r["iterations"]) if mode == "fixed" else f"{100 * r['fluid_density_tolerance']:g}%"
+                        fixed = mode.startswith("fixed")
+                        tag = str(r["iterations"]) if fixed else f"{100 * r['fluid_density_tolerance']:g}%"
                         ax.annotate(
                             tag, (r["ms_per_frame"], r[key]), fontsize=7, xytext=(3, 3), textcoords="offset points"
                         )
@@ -262,6 +271,7 @@ def main(argv=None):
         help="tolerance mode with up to this many density passes per XPBD iteration (fluid_max_iterations); "
         "1: the tolerance ends the substep's density passes at the XPBD iteration level",
     )
+    parser.add_argument("--warm-start", type=float, default=0.0, help="fluid_warm_start of every run")
     parser.add_argument("--device", default=None)
     parser.add_argument("--json", default=None)
     parser.add_argument("--plot", default=None, help="draw the chart here (from --inputs, or this run)")

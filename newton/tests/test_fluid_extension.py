@@ -63,6 +63,7 @@ def test_solver_keywords(test, device):
         "fluid_max_neighbors",
         "fluid_density_tolerance",
         "fluid_max_iterations",
+        "fluid_warm_start",
         "max_diffuse_particles",
     ):
         test.assertIn(name, params)
@@ -98,6 +99,8 @@ BAD_ARGUMENTS = [
     ("fluid_max_iterations", 0),
     ("fluid_max_iterations", -2),
     ("fluid_max_iterations", 65),
+    ("fluid_warm_start", -0.1),
+    ("fluid_warm_start", 1.0),
 ]
 
 

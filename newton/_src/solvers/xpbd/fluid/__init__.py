@@ -298,6 +298,11 @@ _FLUID_DOC = """
                 past that they can cross a thin wall before its contact is found. 1 prevents it (in
                 closed containers under violent forcing): each substep's predicted travel is shortened to it
                 (and the velocity by the same factor), at the cost of the fastest particles' speed.
+            fluid_warm_start: Share of a substep's summed density multipliers that the next substep starts
+                from, in [0, 1). Defaults to 0 (off, no cost). A load the fluid carried, like the weight of a
+                deep column, is then held before the iterations start: about half the compression at the
+                same iteration count for one more correction pass per substep; 0.5 is a good value (above
+                it the fluid over-expands). To change it after construction, create the solver with a value > 0.
             max_diffuse_particles: Capacity of the ring buffer of diffuse (spray, foam, bubble) particles, >= 0;
                 0 is off (no cost). See ``diffuse_positions`` and the other ``diffuse_*`` attributes.
 """

@@ -57,6 +57,7 @@ class FluidParams:
     viscosity: float  # [0, 1]
     vorticity: float  # confinement strength [m/s]
     density_tolerance: float  # mean compression at which density sub-iterations stop
+    warm_start: float  # share of a substep's summed multipliers that the next substep starts from (0: off)
     wall_scale: float  # lattice density / rest density: converts the wall tables to constraint units
     wall_table_step: float  # wall distance between table samples [m]
 
@@ -164,6 +165,16 @@ def density_term(xi: wp.vec3, xj4: wp.vec4, pi: int, sorted_particle: wp.array[w
 
 
 @wp.func
+def pair_share(xi4: wp.vec4, xj4: wp.vec4):
+    """Mass weight ``2 m_j / (m_i + m_j)`` of a pair's correction (1 for equal masses).
+
+    It keeps the pair's momentum: the lighter particle gives way, which is what makes a heavier
+    fluid sink.
+    """
+    return 2.0 * xj4[3] / (xi4[3] + xj4[3])
+
+
+@wp.func
 def correction_term(
     xi4: wp.vec4,
     lam_i: float,
@@ -182,14 +193,35 @@ def correction_term(
     dist = wp.sqrt(r2)
     n = pair_direction(r, dist, pi, sorted_particle, j, p)
     d = p.h - dist
-    # mass-weighted (2 m_j / (m_i + m_j), 1 for equal masses) so that the pair's momentum is
-    # unchanged: the lighter particle gives way, which is what makes a heavier fluid sink
-    share = 2.0 * xj4[3] / (xi4[3] + xj4[3])
+    share = pair_share(xi4, xj4)
     dx = n * (p.spiky_grad * d * d * (lam_i + lam_j) * p.reference_mass * p.inv_rest_density * share)
     coh = wp.vec3(0.0)
     if p.cohesion > 0.0:
         coh = n * (-share * akinci_cohesion(dist, p))
     return wp.spatial_vector(dx, coh)
+
+
+@wp.func
+def multiplier_term(
+    xi4: wp.vec4,
+    lam_i: float,
+    xj4: wp.vec4,
+    lam_j: float,
+    pi: int,
+    sorted_particle: wp.array[wp.int32],
+    j: int,
+    p: FluidParams,
+):
+    """Neighbour ``j``'s correction on slot ``i`` for the multipliers ``lam_i``, ``lam_j`` (no cohesion)."""
+    r = wp.vec3(xi4[0] - xj4[0], xi4[1] - xj4[1], xi4[2] - xj4[2])
+    r2 = wp.dot(r, r)
+    if r2 >= p.h2:
+        return wp.vec3(0.0)
+    dist = wp.sqrt(r2)
+    n = pair_direction(r, dist, pi, sorted_particle, j, p)
+    d = p.h - dist
+    scale = p.spiky_grad * d * d * (lam_i + lam_j) * p.reference_mass * p.inv_rest_density
+    return n * (scale * pair_share(xi4, xj4))
 
 
 @wp.kernel
@@ -310,6 +342,7 @@ def apply_fluid_density_correction(
     slot_dx: wp.array[wp.vec3],
     wall_c: wp.array[float],
     wall_grad: wp.array[wp.vec3],
+    lambda_sum: wp.array[float],
 ):
     """Add the density correction and the cohesion bias of slot ``i`` to its particle's Jacobi delta.
 
@@ -362,6 +395,99 @@ def apply_fluid_density_correction(
         dx += coh
     particle_deltas[pi] = particle_deltas[pi] + dx
     slot_dx[i] = dx
+    if p.warm_start > 0.0:
+        lambda_sum[i] = lambda_sum[i] + lam_i
+
+
+@wp.kernel
+def gather_fluid_warm_start(
+    params: wp.array[FluidParams],
+    slots: FluidSlots,
+    particle_lambda: wp.array[float],
+    # outputs
+    warm_lambda: wp.array[float],
+    lambda_sum: wp.array[float],
+):
+    """Gather the multipliers each fluid particle carries from the last substep into slot order."""
+    i = wp.tid()
+    pi = slots.particle[i]
+    if pi < 0 or params[0].warm_start <= 0.0:
+        return
+    lam = particle_lambda[pi]
+    warm_lambda[i] = lam
+    lambda_sum[i] = lam
+
+
+@wp.kernel
+def apply_fluid_warm_start(
+    params: wp.array[FluidParams],
+    slots: FluidSlots,
+    active: wp.array[wp.int32],
+    warm_lambda: wp.array[float],
+    particle_inv_mass: wp.array[float],
+    # outputs
+    particle_deltas: wp.array[wp.vec3],
+    slot_dx: wp.array[wp.vec3],
+    wall_c: wp.array[float],
+    wall_grad: wp.array[wp.vec3],
+):
+    """Start the substep's density solve from the multipliers of the last one (warm start).
+
+    Moves slot ``i`` by the correction of the carried multipliers (as
+    :func:`apply_fluid_density_correction` does with fresh ones, without cohesion) before the first
+    density evaluation: a load the fluid carried last substep, like the weight of a deep column, is
+    already held when the iterations start, which then only correct what changed.
+    """
+    i = wp.tid()
+    pi = slots.particle[i]
+    if pi < 0:
+        return
+    wall_g = wall_grad[i]
+    # the walls' share was accumulated for this pass only
+    wall_grad[i] = wp.vec3(0.0)
+    wall_c[i] = 0.0
+    slot_dx[i] = wp.vec3(0.0)
+    p = params[0]
+    if active[0] == 0 or p.warm_start <= 0.0 or particle_inv_mass[pi] == 0.0:
+        return
+    xi4 = slots.xm[i]
+    lam_i = warm_lambda[i]
+    dx = wall_g * lam_i
+    count = fluid_neighbor_count(slots, i)
+    for k in range(count):
+        j = fluid_neighbor(slots, i, k)
+        dx += multiplier_term(xi4, lam_i, slots.xm[j], warm_lambda[j], pi, slots.particle, j, p)
+    dx *= p.relaxation
+    dx_len = wp.length(dx)
+    if dx_len > p.max_correction:
+        dx *= p.max_correction / dx_len
+    particle_deltas[pi] = particle_deltas[pi] + dx
+    slot_dx[i] = dx
+
+
+@wp.kernel
+def store_fluid_warm_start(
+    params: wp.array[FluidParams],
+    slots: FluidSlots,
+    slot_fluid_index: wp.array[wp.int32],
+    fluid_particle: wp.array[wp.int32],
+    lambda_sum: wp.array[float],
+    # outputs
+    particle_lambda: wp.array[float],
+):
+    """Keep ``warm_start`` times each particle's multipliers of this substep for the next one.
+
+    A particle left out of this substep's solve (inactive, non-finite) carries nothing.
+    """
+    i = wp.tid()
+    p = params[0]
+    if p.warm_start <= 0.0:
+        return
+    pi = slots.particle[i]
+    if pi < 0:
+        particle_lambda[fluid_particle[slot_fluid_index[i]]] = 0.0
+        return
+    particle_lambda[pi] = p.warm_start * lambda_sum[i]
 
 
 @wp.kernel

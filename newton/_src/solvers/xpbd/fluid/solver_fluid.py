@@ -37,6 +37,7 @@ from .kernels import (
     advance_fluid_slots,
     apply_fluid_density_correction,
     apply_fluid_viscosity,
+    apply_fluid_warm_start,
     apply_vorticity_confinement,
     begin_fluid_subiterations,
     compute_fluid_density_lambda,
@@ -44,7 +45,9 @@ from .kernels import (
     decide_fluid_subiteration,
     gather_fluid_positions,
     gather_fluid_state,
+    gather_fluid_warm_start,
     recover_nonfinite_fluid,
+    store_fluid_warm_start,
 )
 from .neighbors import FluidNeighborSearch
 from .render_particles import compute_fluid_render_particles, reset_render_particles
@@ -100,6 +103,7 @@ class FluidConfig:
     fluid_density_tolerance: float = 0.0
     fluid_max_iterations: int = 1
     fluid_max_displacement: float = math.inf
+    fluid_warm_start: float = 0.0
     max_diffuse_particles: int = 0
 
     #: parameters that may change after construction (they live on the device)
@@ -111,6 +115,7 @@ class FluidConfig:
         "fluid_relaxation",
         "fluid_density_tolerance",
         "fluid_max_displacement",
+        "fluid_warm_start",
     )
 
     def __post_init__(self):
@@ -144,6 +149,8 @@ class FluidConfig:
             # inf (no limit) is allowed here, unlike for the other parameters
             infinite = isinstance(value, numbers.Real) and not isinstance(value, bool) and value == math.inf
             v = math.inf if infinite else _real(name, value, 0.0, lo_open=True)
+        elif name == "fluid_warm_start":
+            v = _real(name, value, 0.0, 1.0, hi_open=True)
         elif name == "fluid_relaxation":
             v = _real(name, value, 0.0, 2.0, lo_open=True)
         else:
@@ -159,8 +166,8 @@ def fluid_memory_bytes(fluid_count: int, particle_count: int, neighbor_capacity:
     16 bytes) and about 76 bytes of per-slot state; per model particle, two 4-byte maps; per
     diffuse particle, 28 bytes.
     """
-    per_fluid = 4 * neighbor_capacity + 16 + 16 + 32 + 76
-    return int(fluid_count * per_fluid + 8 * particle_count + 28 * diffuse)
+    per_fluid = 4 * neighbor_capacity + 16 + 16 + 32 + 84
+    return int(fluid_count * per_fluid + 12 * particle_count + 28 * diffuse)
 
 
 def free_memory(device) -> int | None:
@@ -276,12 +283,19 @@ class FluidSolver:
             self.sorted_v = wp.zeros(n, dtype=wp.vec3)
             self.vorticity = wp.zeros(n, dtype=wp.vec3)
             self.slot_dx = wp.zeros(n, dtype=wp.vec3)
+            # warm start: multipliers carried per particle between substeps, their slot-order copy and
+            # the substep's running sum per slot
+            self.particle_lambda = wp.zeros(model.particle_count, dtype=float)
+            self.warm_lambda = wp.zeros(n, dtype=float)
+            self.lambda_sum = wp.zeros(n, dtype=float)
             # state of the density sub-iteration loop: an "always on" flag for the single pass,
             # and the loop's flag, correction count, compression bins and a total for diagnostics
             self._always_active = wp.ones(1, dtype=wp.int32)
             # tolerance mode with one pass per iteration: cleared once a substep's density has converged
             self._substep_active = wp.ones(1, dtype=wp.int32)
             self.tolerance_mode = config.fluid_max_iterations > 1 or config.fluid_density_tolerance > 0.0
+            # the warm-start passes exist only on a solver created with it (a scene without it pays nothing)
+            self.warm_start_mode = config.fluid_warm_start > 0.0
             self._loop_active = wp.zeros(1, dtype=wp.int32)
             self._loop_count = wp.zeros(1, dtype=wp.int32)
             self._pass_corrects = wp.zeros(1, dtype=wp.int32)
@@ -355,6 +369,7 @@ class FluidSolver:
         p.viscosity = c.fluid_viscosity
         p.vorticity = c.fluid_vorticity
         p.density_tolerance = c.fluid_density_tolerance
+        p.warm_start = c.fluid_warm_start
         p.wall_scale = self.lattice_density / self.rest_density
         p.wall_table_step = h / (WALL_TABLE_SIZE - 1)
         self.params.assign(wp.array([p], dtype=FluidParams, device="cpu"))
@@ -367,7 +382,12 @@ class FluidSolver:
         return self.config.fluid_max_iterations == 1 and self.tolerance_mode
 
     def check_change(self, name: str, value) -> None:
-        """Refuse to switch the tolerance mode on after construction (its passes are not launched)."""
+        """Refuse to switch the tolerance mode or the warm start on after construction (their passes are not launched)."""
+        if name == "fluid_warm_start" and not self.warm_start_mode and value != 0.0:
+            raise ValueError(
+                f"fluid_warm_start={value!r} cannot be set on a solver created without it: create the solver "
+                "with fluid_warm_start in (0, 1)"
+            )
         if name == "fluid_density_tolerance" and not self.tolerance_mode and value != 0.0:
             raise ValueError(
                 f"fluid_density_tolerance={value!r} cannot be set on a solver created without it (and with "
@@ -411,6 +431,8 @@ class FluidSolver:
                 inputs=[s.slots, active, particle_q, m.particle_mass],
                 device=self.device,
             )
+        if self._slots_hold_positions and self._warm_start_on():
+            self._warm_start(particle_deltas, active)
         # after this iteration's correction, the gathered positions are out of date
         self._slots_hold_positions = False
         if self.config.fluid_max_iterations == 1:
@@ -462,13 +484,37 @@ class FluidSolver:
         self._correct(particle_deltas, self._pass_corrects)
         wp.launch(advance_fluid_slots, dim=n, inputs=[s.slots, self._pass_corrects, self.slot_dx], device=self.device)
 
+    def _warm_start_on(self) -> bool:
+        # in a graph the passes are captured and check the parameter on the device (so it may change)
+        return self.warm_start_mode and (self.device.is_capturing or self.config.fluid_warm_start > 0.0)
+
+    def _warm_start(self, particle_deltas: wp.array, active: wp.array) -> None:
+        """Move the fluid by the multipliers carried from the last substep before its first evaluation."""
+        s, m, n = self.search, self.model, self.fluid_count
+        wp.launch(
+            gather_fluid_warm_start,
+            dim=n,
+            inputs=[self.params, s.slots, self.particle_lambda],
+            outputs=[self.warm_lambda, self.lambda_sum],
+            device=self.device,
+        )
+        self._accumulate_walls(active)
+        wp.launch(
+            apply_fluid_warm_start,
+            dim=n,
+            inputs=[self.params, s.slots, active, self.warm_lambda, m.particle_inv_mass],
+            outputs=[particle_deltas, self.slot_dx, self.wall_c, self.wall_grad],
+            device=self.device,
+        )
+        wp.launch(advance_fluid_slots, dim=n, inputs=[s.slots, active, self.slot_dx], device=self.device)
+
     def _correct(self, particle_deltas: wp.array, active: wp.array) -> None:
         m = self.model
         wp.launch(
             apply_fluid_density_correction,
             dim=self.fluid_count,
             inputs=[self.params, self.search.slots, active, self.lambdas, m.particle_inv_mass],
-            outputs=[particle_deltas, self.slot_dx, self.wall_c, self.wall_grad],
+            outputs=[particle_deltas, self.slot_dx, self.wall_c, self.wall_grad, self.lambda_sum],
             device=self.device,
         )
 
@@ -519,6 +565,15 @@ class FluidSolver:
         kernel on an H100), less than a conditional node would (about 5 us, docs/performance.md).
         """
         c = self.config
+        if self._warm_start_on():
+            s = self.search
+            wp.launch(
+                store_fluid_warm_start,
+                dim=self.fluid_count,
+                inputs=[self.params, s.slots, s.values, self.fluid_particle, self.lambda_sum],
+                outputs=[self.particle_lambda],
+                device=self.device,
+            )
         if self.device.is_capturing:
             self._velocity_pass(state_out)
             self._vorticity_pass(state_out, dt)
