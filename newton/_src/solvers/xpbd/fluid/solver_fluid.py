@@ -419,7 +419,8 @@ class FluidSolver:
         measures the walls again where the last one left the particles. The count is decided on the
         device: inside a graph capture the loop is a conditional while node; on a GPU outside one
         every allowed pass is launched and the passes after the decision do nothing (no
-        synchronisation); on the CPU the loop reads its flag and stops.
+        synchronisation); on the CPU the loop reads its flag and stops. With ``fluid_warm_start``, the
+        substep's first iteration first moves the fluid by the multipliers carried from the last one.
         """
         s, m, n = self.search, self.model, self.fluid_count
         # with the tolerance on the XPBD iterations, a converged substep skips the rest of its passes
