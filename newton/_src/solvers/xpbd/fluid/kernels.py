@@ -184,8 +184,9 @@ def correction_term(
     sorted_particle: wp.array[wp.int32],
     j: int,
     p: FluidParams,
+    cohesion: float,
 ):
-    """Neighbour ``j``'s density correction (top) and unscaled cohesion pull (bottom) on slot ``i``."""
+    """Neighbour ``j``'s density correction (top) and unscaled cohesion pull (bottom, zero unless ``cohesion`` > 0) on slot ``i``."""
     r = wp.vec3(xi4[0] - xj4[0], xi4[1] - xj4[1], xi4[2] - xj4[2])
     r2 = wp.dot(r, r)
     if r2 >= p.h2:
@@ -196,32 +197,9 @@ def correction_term(
     share = pair_share(xi4, xj4)
     dx = n * (p.spiky_grad * d * d * (lam_i + lam_j) * p.reference_mass * p.inv_rest_density * share)
     coh = wp.vec3(0.0)
-    if p.cohesion > 0.0:
+    if cohesion > 0.0:
         coh = n * (-share * akinci_cohesion(dist, p))
     return wp.spatial_vector(dx, coh)
-
-
-@wp.func
-def multiplier_term(
-    xi4: wp.vec4,
-    lam_i: float,
-    xj4: wp.vec4,
-    lam_j: float,
-    pi: int,
-    sorted_particle: wp.array[wp.int32],
-    j: int,
-    p: FluidParams,
-):
-    """Neighbour ``j``'s correction on slot ``i`` for the multipliers ``lam_i``, ``lam_j`` (no cohesion)."""
-    r = wp.vec3(xi4[0] - xj4[0], xi4[1] - xj4[1], xi4[2] - xj4[2])
-    r2 = wp.dot(r, r)
-    if r2 >= p.h2:
-        return wp.vec3(0.0)
-    dist = wp.sqrt(r2)
-    n = pair_direction(r, dist, pi, sorted_particle, j, p)
-    d = p.h - dist
-    scale = p.spiky_grad * d * d * (lam_i + lam_j) * p.reference_mass * p.inv_rest_density
-    return n * (scale * pair_share(xi4, xj4))
 
 
 @wp.kernel
@@ -330,6 +308,16 @@ def compute_fluid_density_lambda(
         wp.atomic_add(compression_bins, COMPRESSION_BINS + b, 1.0)
 
 
+@wp.func
+def relaxed_correction(dx: wp.vec3, p: FluidParams):
+    """A density correction scaled by ``fluid_relaxation`` and bounded to ``max_correction`` per pass."""
+    dx *= p.relaxation
+    dx_len = wp.length(dx)
+    if dx_len > p.max_correction:
+        dx *= p.max_correction / dx_len
+    return dx
+
+
 @wp.kernel
 def apply_fluid_density_correction(
     params: wp.array[FluidParams],
@@ -373,18 +361,15 @@ def apply_fluid_density_correction(
     while k + 1 < count:
         j0 = fluid_neighbor(slots, i, k)
         j1 = fluid_neighbor(slots, i, k + 1)
-        acc += correction_term(xi4, lam_i, slots.xm[j0], lambdas[j0], pi, slots.particle, j0, p)
-        acc += correction_term(xi4, lam_i, slots.xm[j1], lambdas[j1], pi, slots.particle, j1, p)
+        acc += correction_term(xi4, lam_i, slots.xm[j0], lambdas[j0], pi, slots.particle, j0, p, p.cohesion)
+        acc += correction_term(xi4, lam_i, slots.xm[j1], lambdas[j1], pi, slots.particle, j1, p, p.cohesion)
         k += 2
     if k < count:
         j = fluid_neighbor(slots, i, k)
-        acc += correction_term(xi4, lam_i, slots.xm[j], lambdas[j], pi, slots.particle, j, p)
+        acc += correction_term(xi4, lam_i, slots.xm[j], lambdas[j], pi, slots.particle, j, p, p.cohesion)
     dx = wp.spatial_top(acc) + wall_g * lam_i
     coh = wp.spatial_bottom(acc)
-    dx *= p.relaxation
-    dx_len = wp.length(dx)
-    if dx_len > p.max_correction:
-        dx *= p.max_correction / dx_len
+    dx = relaxed_correction(dx, p)
     if p.cohesion > 0.0:
         # the bias is bounded so a crowded neighbourhood cannot pull harder than one rest spacing allows
         coh *= p.cohesion
@@ -456,11 +441,9 @@ def apply_fluid_warm_start(
     count = fluid_neighbor_count(slots, i)
     for k in range(count):
         j = fluid_neighbor(slots, i, k)
-        dx += multiplier_term(xi4, lam_i, slots.xm[j], warm_lambda[j], pi, slots.particle, j, p)
-    dx *= p.relaxation
-    dx_len = wp.length(dx)
-    if dx_len > p.max_correction:
-        dx *= p.max_correction / dx_len
+        # the multipliers alone: no cohesion
+        dx += wp.spatial_top(correction_term(xi4, lam_i, slots.xm[j], warm_lambda[j], pi, slots.particle, j, p, 0.0))
+    dx = relaxed_correction(dx, p)
     particle_deltas[pi] = particle_deltas[pi] + dx
     slot_dx[i] = dx
 
@@ -588,13 +571,18 @@ def begin_fluid_subiterations(loop_active: wp.array[wp.int32], loop_count: wp.ar
 
 
 @wp.func
-def summed_compression(bins: wp.array[float]):
-    """Total compression and particle count of the compression bins (see :func:`compute_fluid_density_lambda`)."""
+def take_compression(bins: wp.array[float]):
+    """Total compression and particle count of the compression bins (see :func:`compute_fluid_density_lambda`).
+
+    Clears the bins for the next evaluation.
+    """
     total = float(0.0)
     count = float(0.0)
     for b in range(COMPRESSION_BINS):
         total += bins[b]
         count += bins[COMPRESSION_BINS + b]
+        bins[b] = 0.0
+        bins[COMPRESSION_BINS + b] = 0.0
     return wp.vec2(total, count)
 
 
@@ -619,11 +607,9 @@ def decide_fluid_subiteration(
     if loop_active[0] == 0:
         correct[0] = 0
         return
-    sums = summed_compression(bins)
+    sums = take_compression(bins)
     total = sums[0]
     count = sums[1]
-    for b in range(2 * COMPRESSION_BINS):
-        bins[b] = 0.0
     if count == 0.0 or total <= params[0].density_tolerance * count:
         correct[0] = 0
         loop_active[0] = 0
@@ -650,11 +636,9 @@ def decide_fluid_density_converged(
     """
     if active[0] == 0:
         return
-    sums = summed_compression(bins)
+    sums = take_compression(bins)
     total = sums[0]
     count = sums[1]
-    for b in range(2 * COMPRESSION_BINS):
-        bins[b] = 0.0
     tolerance = params[0].density_tolerance
     if count == 0.0 or (tolerance > 0.0 and total <= tolerance * count):
         active[0] = 0
