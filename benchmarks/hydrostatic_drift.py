@@ -41,6 +41,7 @@ def main(argv=None):
     parser.add_argument("--cohesion", type=float, default=0.0)
     parser.add_argument("--relaxation", type=float, default=1.0, help="fluid_relaxation")
     parser.add_argument("--smoothing", type=float, default=1.8, help="smoothing length over the spacing")
+    parser.add_argument("--warm-start", type=float, default=0.0, help="fluid_warm_start")
     parser.add_argument("--settle", type=float, default=3.0, help="seconds before the reference positions")
     parser.add_argument("--seconds", type=int, default=5, help="seconds of drift measured")
     parser.add_argument("--device", default=None)
@@ -78,6 +79,7 @@ def main(argv=None):
         fluid_cohesion=args.cohesion,
         fluid_relaxation=args.relaxation,
         fluid_smoothing_length=args.smoothing * D,
+        fluid_warm_start=args.warm_start,
     )
     # contacts out to one diameter from the surface, so the particles see the walls' density
     pipeline = newton.CollisionPipeline(model, soft_contact_gap=0.5 * D)
@@ -138,6 +140,7 @@ def main(argv=None):
         "viscosity": args.viscosity,
         "cohesion": args.cohesion,
         "relaxation": args.relaxation,
+        "warm_start": args.warm_start,
         "smoothing_over_spacing": args.smoothing,
         "settle_s": args.settle,
         "rows": rows,

@@ -10,6 +10,7 @@ import warp as wp
 from newton.tests.unittest_utils import add_function_test, get_test_devices
 
 import newton
+from newton._src.solvers.xpbd.fluid.kernels import WALL_CONTACTS_PER_SLOT, FluidParams, FluidSlots, fluid_wall_share
 from newton._src.solvers.xpbd.fluid.solver_fluid import wall_density_tables
 
 FLUID = int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID)
@@ -562,6 +563,70 @@ def test_density_subiterations_see_the_walls_move(test, device):
     # 0.1 spacings above the floor, 18 % compressed, and the next found the fluid alone uncompressed
     test.assertGreater(q[:, 2].min(), 0.2 * D)
     test.assertLess(compression[bottom].max(), 0.02)
+
+
+@wp.kernel
+def evaluate_wall_share(
+    params: wp.array[FluidParams],
+    slots: FluidSlots,
+    wall_table: wp.array[float],
+    wall_table_grad: wp.array[float],
+    share: wp.array[wp.vec4],
+):
+    i = wp.tid()
+    x4 = slots.xm[i]
+    x = wp.vec3(x4[0], x4[1], x4[2])
+    share[i] = fluid_wall_share(slots, i, x, params[0], wall_table, wall_table_grad)
+
+
+def test_wall_density_does_not_depend_on_contact_order(test, device):
+    # contacts are found in any order on a GPU; a particle by three or more walls must get the same
+    # (bitwise) ghost density whatever the order its planes were listed in
+    fluid = Sim(make_model(device, lambda b: add_block(b, (2, 2, 2)))).solver._fluid
+    rng = np.random.default_rng(3)
+    n = 64
+    x = rng.uniform(0.3 * D, 0.9 * D, size=(n, 3))
+    diagonal = np.array([1.0, 1.0, 1.0]) / np.sqrt(3.0)
+    planes = np.array(
+        [[0.0, 0.0, 1.0, 0.0], [1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.01], [*diagonal, 0.3 * D]], dtype=np.float32
+    )
+    test.assertEqual(WALL_CONTACTS_PER_SLOT, len(planes))
+
+    def shares(lists):
+        # lists[i]: the planes listed for slot i, in listing order
+        slots = FluidSlots()
+        slots.particle = wp.array(np.arange(n, dtype=np.int32), dtype=wp.int32, device=device)
+        slots.xm = wp.array(np.hstack([x, np.full((n, 1), MASS)]).astype(np.float32), dtype=wp.vec4, device=device)
+        slots.neighbors = wp.zeros(n, dtype=wp.int32, device=device)
+        slots.neighbor_count = wp.zeros(n, dtype=wp.int32, device=device)
+        slots.capacity = 1
+        plane = np.zeros((WALL_CONTACTS_PER_SLOT, n, 4), dtype=np.float32)
+        for i, listed in enumerate(lists):
+            plane[: len(listed), i] = listed
+        slots.wall_count = wp.array([len(listed) for listed in lists], dtype=wp.int32, device=device)
+        slots.wall_plane = wp.array(plane.reshape(-1, 4), dtype=wp.vec4, device=device)
+        out = wp.zeros(n, dtype=wp.vec4, device=device)
+        wp.launch(
+            evaluate_wall_share,
+            dim=n,
+            inputs=[fluid.params, slots, fluid.wall_table, fluid.wall_table_grad],
+            outputs=[out],
+            device=device,
+        )
+        return out.numpy()
+
+    reference = shares([planes] * n)
+    single = [shares([planes[k : k + 1]] * n) for k in range(len(planes))]
+    # the share is the walls' shares added up (and not nothing: the particles are within h of the walls)
+    np.testing.assert_allclose(reference, sum(single), rtol=1.0e-5, atol=1.0e-7)
+    test.assertGreater(reference[:, 3].min(), 0.0)
+    for _ in range(12):
+        lists = [planes[rng.permutation(len(planes))] for _ in range(n)]
+        np.testing.assert_array_equal(shares(lists), reference)
+    # a plane listed twice (two shapes, one surface) counts twice, in either place
+    twice = shares([planes[[0, 1, 0]]] * n)
+    np.testing.assert_array_equal(shares([planes[[0, 0, 1]]] * n), twice)
+    np.testing.assert_allclose(twice, 2.0 * single[0] + single[1], rtol=1.0e-5, atol=1.0e-7)
 
 
 def test_tolerance_stops_xpbd_iterations(test, device):

@@ -31,7 +31,7 @@ import warp as wp
 
 from ....geometry import GeoType
 from .kernels import FluidParams, FluidSlots, fluid_neighbor, fluid_neighbor_count
-from .neighbors import _NO_WORLD, fluid_cell, fluid_cell_hash
+from .neighbors import _NO_WORLD, fluid_cell, fluid_cell_hash, fluid_cell_range
 
 DIFFUSE_DEAD = wp.constant(-1)
 DIFFUSE_SPRAY = wp.constant(0)
@@ -186,7 +186,6 @@ def _shape_distance(shape_type: int, scale: wp.vec3, p: wp.vec3):
 def advect_diffuse_particles(
     params: wp.array[FluidParams],
     cell_offset: wp.array[wp.int32],
-    cell_count: wp.array[wp.int32],
     sorted_xm: wp.array[wp.vec4],
     sorted_v: wp.array[wp.vec3],
     sorted_world: wp.array[wp.int32],
@@ -230,9 +229,9 @@ def advect_diffuse_particles(
         dy = (cell // 3) % 3 - 1
         dz = cell // 9 - 1
         key = fluid_cell_hash(c[0] + dx, c[1] + dy, c[2] + dz, world, cell_bits)
-        start = cell_offset[key]
+        start, end = fluid_cell_range(cell_offset, key)
         # slots of one cell are contiguous: these reads are coalesced
-        for j in range(start, start + cell_count[key]):
+        for j in range(start, end):
             if sorted_world[j] == _NO_WORLD:
                 continue
             xj4 = sorted_xm[j]

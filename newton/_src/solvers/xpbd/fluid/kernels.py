@@ -32,6 +32,9 @@ COMPRESSION_BINS = 64
 
 # FluidParams.max_displacement at and above this means no limit
 MAX_DISPLACEMENT_OFF = 1.0e30
+# static-wall contacts whose ghost density a fluid particle can take (more are left out of its density;
+# a particle in the corner of a box tank has three)
+WALL_CONTACTS_PER_SLOT = 4
 
 
 @wp.struct
@@ -71,6 +74,8 @@ class FluidSlots:
     neighbors: wp.array[wp.int32]  # neighbour slots, transposed: neighbors[k * slot_count + i]
     neighbor_count: wp.array[wp.int32]  # neighbours found (may exceed capacity)
     capacity: int  # neighbours stored per slot
+    wall_count: wp.array[wp.int32]  # static-wall contacts listed for the slot (may exceed WALL_CONTACTS_PER_SLOT)
+    wall_plane: wp.array[wp.vec4]  # their planes, transposed: unit normal (xyz) and offset n . p [m] (w)
 
 
 @wp.func
@@ -246,23 +251,117 @@ def gather_fluid_state(
     sorted_v[i] = particle_qd[pi]
 
 
+@wp.func
+def plane_after(a: wp.vec4, b: wp.vec4):
+    """Whether plane ``a`` comes after ``b`` in the order (offset, normal x, y, z)."""
+    if a[3] != b[3]:
+        return a[3] > b[3]
+    if a[0] != b[0]:
+        return a[0] > b[0]
+    if a[1] != b[1]:
+        return a[1] > b[1]
+    return a[2] > b[2]
+
+
+@wp.func
+def fluid_wall_share(
+    slots: FluidSlots,
+    i: int,
+    x: wp.vec3,
+    p: FluidParams,
+    wall_table: wp.array[float],
+    wall_table_grad: wp.array[float],
+):
+    """The static walls' share of slot ``i``'s ``rho / rho0`` at ``x`` (``w``) and its gradient (``xyz``).
+
+    The fluid would continue beyond a wall as a lattice at rest; the tables hold that ghost fluid's
+    poly6 density (over the lattice density) and its derivative against the distance from the
+    particle centre to the wall plane. Without it a particle by a wall misses neighbours and packs
+    closer than the rest distance before the constraint acts. The walls are the planes listed for
+    the slot from the step's contacts (:func:`list_fluid_wall_contacts`), added in the order of
+    :func:`plane_after` (equal planes at once): the contacts arrive in any order on a GPU, and the
+    sum of three or more floats depends on its order.
+    """
+    n = slots.particle.shape[0]
+    count = wp.min(slots.wall_count[i], WALL_CONTACTS_PER_SLOT)
+    share = wp.vec4(0.0)
+    last = wp.vec4(0.0)
+    for t in range(count):
+        # the next plane after the last one added, and how often it is listed
+        found = int(0)
+        plane = wp.vec4(0.0)
+        for e in range(count):
+            q = slots.wall_plane[e * n + i]
+            if t > 0 and not plane_after(q, last):
+                continue
+            if found == 0 or plane_after(plane, q):
+                plane = q
+                found = 1
+            elif q == plane:
+                found += 1
+        if found == 0:
+            break
+        last = plane
+        normal = wp.vec3(plane[0], plane[1], plane[2])
+        dist = wp.max(wp.dot(normal, x) - plane[3], 0.0)
+        if dist < p.h:
+            u = dist / p.wall_table_step
+            j = wp.min(int(u), wall_table.shape[0] - 2)
+            f = u - float(j)
+            c = (wall_table[j] * (1.0 - f) + wall_table[j + 1] * f) * p.wall_scale
+            dc = (wall_table_grad[j] * (1.0 - f) + wall_table_grad[j + 1] * f) * p.wall_scale
+            share += wp.vec4(normal[0] * dc, normal[1] * dc, normal[2] * dc, c) * float(found)
+    return share
+
+
+@wp.kernel
+def list_fluid_wall_contacts(
+    contact_count: wp.array[int],
+    contact_particle: wp.array[int],
+    contact_shape: wp.array[int],
+    contact_point: wp.array[wp.vec3],
+    contact_normal: wp.array[wp.vec3],
+    contact_max: int,
+    shape_body: wp.array[int],
+    slot_of_particle: wp.array[wp.int32],
+    # outputs
+    slots: FluidSlots,
+):
+    """List each fluid slot's contacts with static shapes (once per step, after the build cleared the counts).
+
+    Walls of moving bodies would need their reaction on the body: only static shapes lend density.
+    """
+    k = wp.tid()
+    if k >= wp.min(contact_count[0], contact_max):
+        return
+    slot = slot_of_particle[contact_particle[k]]
+    if slot < 0 or shape_body[contact_shape[k]] >= 0:
+        return
+    t = wp.atomic_add(slots.wall_count, slot, 1)
+    if t < WALL_CONTACTS_PER_SLOT:
+        normal = contact_normal[k]
+        plane = wp.vec4(normal[0], normal[1], normal[2], wp.dot(normal, contact_point[k]))
+        slots.wall_plane[t * slots.particle.shape[0] + slot] = plane
+
+
 @wp.kernel
 def compute_fluid_density_lambda(
     params: wp.array[FluidParams],
     slots: FluidSlots,
     active: wp.array[wp.int32],
-    wall_c: wp.array[float],
-    wall_grad: wp.array[wp.vec3],
+    wall_table: wp.array[float],
+    wall_table_grad: wp.array[float],
     track_compression: int,
     # outputs
     density: wp.array[float],
     lambdas: wp.array[float],
+    wall_grad: wp.array[wp.vec3],
     compression_bins: wp.array[float],
 ):
     """Poly6 density and the Jacobi multiplier of the unilateral constraint C = max(rho/rho0 - 1, 0).
 
-    ``wall_c`` and ``wall_grad`` are the static walls' share of ``rho / rho0`` and its gradient (see
-    :func:`accumulate_fluid_wall_density`; zero away from walls). Does nothing while ``active[0]`` is 0.
+    The static walls listed for the slot add their share of ``rho / rho0`` (:func:`fluid_wall_share`);
+    its gradient is kept in ``wall_grad`` for the correction. Does nothing while ``active[0]`` is 0.
     With ``track_compression``, also sums max(rho/rho0 - 1, 0) into ``compression_bins[0, B)`` and
     counts the particles in ``[B, 2B)`` (``B = COMPRESSION_BINS``, spreading the atomics).
     """
@@ -298,8 +397,11 @@ def compute_fluid_density_lambda(
         grad_i += g
         grad_sq += wp.dot(g, g)
     # the walls do not move: their gradient only adds to the particle's own
-    rho += wall_c[i] * p.rest_density
-    grad_i += wall_grad[i]
+    wall = fluid_wall_share(slots, i, xi, p, wall_table, wall_table_grad)
+    wall_g = wp.vec3(wall[0], wall[1], wall[2])
+    rho += wall[3] * p.rest_density
+    grad_i += wall_g
+    wall_grad[i] = wall_g
     density[i] = rho
     lambdas[i] = density_constraint_lambda(rho, grad_i, grad_sq, p)
     if track_compression != 0:
@@ -325,28 +427,20 @@ def apply_fluid_density_correction(
     active: wp.array[wp.int32],
     lambdas: wp.array[float],
     particle_inv_mass: wp.array[float],
+    wall_grad: wp.array[wp.vec3],
     # outputs
     particle_deltas: wp.array[wp.vec3],
     slot_dx: wp.array[wp.vec3],
-    wall_c: wp.array[float],
-    wall_grad: wp.array[wp.vec3],
     lambda_sum: wp.array[float],
 ):
     """Add the density correction and the cohesion bias of slot ``i`` to its particle's Jacobi delta.
 
-    The correction is also written to ``slot_dx`` (for density sub-iterations). The slot's wall
-    share, which this pass has used, is cleared for the next accumulation (also while ``active[0]``
-    is 0, when the pass does nothing else).
+    The correction is also written to ``slot_dx`` (for density sub-iterations). ``wall_grad`` is the
+    walls' gradient of the density pass before it.
     """
     i = wp.tid()
     pi = slots.particle[i]
-    if pi < 0:
-        return
-    wall_g = wall_grad[i]
-    # cleared even when the pass is skipped: the shares were accumulated for this pass only
-    wall_grad[i] = wp.vec3(0.0)
-    wall_c[i] = 0.0
-    if active[0] == 0:
+    if pi < 0 or active[0] == 0:
         return
     if particle_inv_mass[pi] == 0.0:
         slot_dx[i] = wp.vec3(0.0)
@@ -354,6 +448,7 @@ def apply_fluid_density_correction(
     p = params[0]
     xi4 = slots.xm[i]
     lam_i = lambdas[i]
+    wall_g = wall_grad[i]
     acc = wp.spatial_vector(wp.vec3(0.0), wp.vec3(0.0))
     count = fluid_neighbor_count(slots, i)
     # two neighbours per trip: their loads are independent and overlap
@@ -410,11 +505,11 @@ def apply_fluid_warm_start(
     active: wp.array[wp.int32],
     warm_lambda: wp.array[float],
     particle_inv_mass: wp.array[float],
+    wall_table: wp.array[float],
+    wall_table_grad: wp.array[float],
     # outputs
     particle_deltas: wp.array[wp.vec3],
     slot_dx: wp.array[wp.vec3],
-    wall_c: wp.array[float],
-    wall_grad: wp.array[wp.vec3],
 ):
     """Start the substep's density solve from the multipliers of the last one (warm start).
 
@@ -427,17 +522,15 @@ def apply_fluid_warm_start(
     pi = slots.particle[i]
     if pi < 0:
         return
-    wall_g = wall_grad[i]
-    # the walls' share was accumulated for this pass only
-    wall_grad[i] = wp.vec3(0.0)
-    wall_c[i] = 0.0
     slot_dx[i] = wp.vec3(0.0)
     p = params[0]
     if active[0] == 0 or p.warm_start <= 0.0 or particle_inv_mass[pi] == 0.0:
         return
     xi4 = slots.xm[i]
     lam_i = warm_lambda[i]
-    dx = wall_g * lam_i
+    xi = wp.vec3(xi4[0], xi4[1], xi4[2])
+    wall = fluid_wall_share(slots, i, xi, p, wall_table, wall_table_grad)
+    dx = wp.vec3(wall[0], wall[1], wall[2]) * lam_i
     count = fluid_neighbor_count(slots, i)
     for k in range(count):
         j = fluid_neighbor(slots, i, k)
@@ -655,59 +748,6 @@ def advance_fluid_slots(slots: FluidSlots, active: wp.array[wp.int32], slot_dx: 
     x = slots.xm[i]
     d = slot_dx[i]
     slots.xm[i] = wp.vec4(x[0] + d[0], x[1] + d[1], x[2] + d[2], x[3])
-
-
-@wp.kernel
-def accumulate_fluid_wall_density(
-    params: wp.array[FluidParams],
-    contact_count: wp.array[int],
-    contact_particle: wp.array[int],
-    contact_shape: wp.array[int],
-    contact_point: wp.array[wp.vec3],
-    contact_normal: wp.array[wp.vec3],
-    contact_max: int,
-    active: wp.array[wp.int32],
-    shape_body: wp.array[int],
-    slot_of_particle: wp.array[wp.int32],
-    slots: FluidSlots,
-    wall_table: wp.array[float],
-    wall_table_grad: wp.array[float],
-    # outputs
-    wall_c: wp.array[float],
-    wall_grad: wp.array[wp.vec3],
-):
-    """Add the density a static wall lends to a fluid particle near it, from the particle-shape contacts.
-
-    ``wall_c`` and ``wall_grad`` must be zero on entry (the correction pass clears them after use).
-    The particle is taken where its slot holds it (``slots.xm``): where the current pass sees it,
-    also after earlier density passes of the same XPBD iteration have moved it.
-
-    The fluid would continue beyond the wall as a lattice at rest; the tables hold that ghost
-    fluid's poly6 density (over the lattice density) and its derivative against the distance
-    from the particle centre to the wall. Without it a particle by a wall misses neighbours and
-    packs closer than the rest distance before the constraint acts.
-    """
-    k = wp.tid()
-    if k >= wp.min(contact_count[0], contact_max) or active[0] == 0:
-        return
-    pi = contact_particle[k]
-    slot = slot_of_particle[pi]
-    # walls of moving bodies would need their reaction on the body: only static shapes take part
-    if slot < 0 or shape_body[contact_shape[k]] >= 0:
-        return
-    p = params[0]
-    n = contact_normal[k]
-    x4 = slots.xm[slot]
-    dist = wp.max(wp.dot(n, wp.vec3(x4[0], x4[1], x4[2]) - contact_point[k]), 0.0)
-    if dist >= p.h:
-        return
-    u = dist / p.wall_table_step
-    j = wp.min(int(u), wall_table.shape[0] - 2)
-    t = u - float(j)
-    c = wall_table[j] * (1.0 - t) + wall_table[j + 1] * t
-    dc = wall_table_grad[j] * (1.0 - t) + wall_table_grad[j + 1] * t
-    wp.atomic_add(wall_c, slot, c * p.wall_scale)
-    wp.atomic_add(wall_grad, slot, n * (dc * p.wall_scale))
 
 
 @wp.kernel

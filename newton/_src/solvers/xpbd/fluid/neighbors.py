@@ -8,13 +8,14 @@ Once per substep, after prediction:
 1. every fluid particle gets a key: its world's block of a table of ``2^bits`` entries, and in it
    the Morton code of its cell (cell edge = smoothing length ``h``); inactive or non-finite
    particles get the sentinel ``2^bits`` and sort last;
-2. the keys are counting-sorted: particles are counted per table entry (an atomic add, whose
-   return value is the particle's rank in its entry), a prefix sum over the table gives each
-   entry's first slot, every particle goes to its entry's first slot plus its rank, and each
-   entry's slots (but the left-out particles') are then put in fluid-index order (the ranks
-   arrive in any order on a GPU), so particles of one cell of one world are contiguous and the
-   order is the same on every run; the counts and first slots of the table are the cell ranges
-   (an empty entry counts 0);
+2. the keys are counting-sorted: particles are counted per table entry as their keys are computed
+   (an atomic add, whose return value is the particle's rank in its entry), a prefix sum over
+   the table gives each entry's first slot, every particle goes to its entry's first slot plus
+   its rank (clearing its entry's count for the next build, so the table needs no clearing pass),
+   and each entry's slots (but the left-out particles') are then put in fluid-index order (the
+   ranks arrive in any order on a GPU), so particles of one cell of one world are contiguous and
+   the order is the same on every run; an entry's slots run from its first slot to the next
+   entry's (:func:`fluid_cell_range`; an empty entry has none);
 3. positions, masses and worlds are gathered into slot order; each slot then scans the 27
    cells around it and keeps the slots of the same world closer than ``h``.
 
@@ -27,7 +28,7 @@ the scan needs neither a world nor a cell check per candidate.
 
 The counting sort replaced Warp's radix sort: at 100k particles on an H100 the radix sort of the
 19-bit keys took 52 us per substep (about 36 us of it fixed cost; ``benchmarks/radix_sort.py``),
-and the counting sort (a clear, three launches and a prefix sum) makes a frame of the 100k dam break
+and the counting sort (three launches and a prefix sum) makes a frame of the 100k dam break
 0.15 ms faster, 2.80 against 2.95 ms (docs/performance.md).
 """
 
@@ -35,7 +36,7 @@ import numpy as np
 import warp as wp
 
 from ....geometry import ParticleFlags
-from .kernels import MAX_DISPLACEMENT_OFF, FluidParams, FluidSlots
+from .kernels import MAX_DISPLACEMENT_OFF, WALL_CONTACTS_PER_SLOT, FluidParams, FluidSlots
 
 # sentinel world index of a slot with no particle; real world indices are >= -1
 _NO_WORLD = -2
@@ -74,6 +75,12 @@ def fluid_cell(x: wp.vec3, inv_cell: float):
     )
 
 
+@wp.func
+def fluid_cell_range(cell_offset: wp.array[wp.int32], key: int):
+    """First slot and end of the slots of table entry ``key`` (``key <= mask``; exact for every entry)."""
+    return cell_offset[key], cell_offset[key + 1]
+
+
 @wp.kernel
 def compute_fluid_cell_keys(
     fluid_particle: wp.array[wp.int32],
@@ -90,8 +97,12 @@ def compute_fluid_cell_keys(
     particle_qd: wp.array[wp.vec3],
     # outputs
     keys: wp.array[wp.int32],
+    cell_count: wp.array[wp.int32],
+    rank: wp.array[wp.int32],
 ):
-    """Table entry of each fluid particle's cell.
+    """Table entry of each fluid particle's cell, counted per entry (``rank``: the particle's place among them).
+
+    ``cell_count`` must be zero on entry (the scatter of the last build cleared what it counted).
 
     With ``limit_travel``, first shorten the particle's travel from ``particle_q_start`` to
     ``params[0].max_displacement`` (its velocity by the same factor): done here rather than in a pass of
@@ -118,17 +129,7 @@ def compute_fluid_cell_keys(
         c = fluid_cell(x, inv_cell)
         key = fluid_cell_hash(c[0], c[1], c[2], particle_world[pi], cell_bits)
     keys[k] = key
-
-
-@wp.kernel
-def count_fluid_cell_keys(
-    cell_keys: wp.array[wp.int32],
-    # outputs
-    cell_count: wp.array[wp.int32],
-    rank: wp.array[wp.int32],
-):
-    k = wp.tid()
-    rank[k] = wp.atomic_add(cell_count, cell_keys[k], 1)
+    rank[k] = wp.atomic_add(cell_count, key, 1)
 
 
 @wp.kernel
@@ -139,19 +140,21 @@ def scatter_fluid_cell_keys(
     # outputs
     keys: wp.array[wp.int32],
     values: wp.array[wp.int32],
+    cell_count: wp.array[wp.int32],
 ):
+    """Put every particle in its slot, and clear the counts for the next build (all have been used)."""
     k = wp.tid()
     key = cell_keys[k]
     slot = cell_offset[key] + rank[k]
     keys[slot] = key
     values[slot] = k
+    cell_count[key] = 0
 
 
 @wp.kernel
 def order_fluid_cells(
     keys: wp.array[wp.int32],
     cell_offset: wp.array[wp.int32],
-    cell_count: wp.array[wp.int32],
     mask: int,
     # in/out
     values: wp.array[wp.int32],
@@ -166,7 +169,7 @@ def order_fluid_cells(
     key = keys[i]
     if key > mask or cell_offset[key] != i:
         return
-    end = i + cell_count[key]
+    end = cell_offset[key + 1]
     for a in range(i + 1, end):
         v = values[a]
         b = a - 1
@@ -190,9 +193,11 @@ def gather_fluid_slots(
     sorted_xm: wp.array[wp.vec4],
     sorted_world: wp.array[wp.int32],
     slot_of_particle: wp.array[wp.int32],
+    wall_count: wp.array[wp.int32],
 ):
-    """Gather the particles into slot order."""
+    """Gather the particles into slot order (and clear the slots' wall lists, which belong to the last order)."""
     i = wp.tid()
+    wall_count[i] = 0
     pi = fluid_particle[values[i]]
     if keys[i] > mask:
         sorted_particle[i] = -1
@@ -211,7 +216,6 @@ def build_fluid_neighbor_lists(
     sorted_xm: wp.array[wp.vec4],
     sorted_world: wp.array[wp.int32],
     cell_offset: wp.array[wp.int32],
-    cell_count: wp.array[wp.int32],
     h: float,
     inv_cell: float,
     cell_bits: int,
@@ -259,9 +263,8 @@ def build_fluid_neighbor_lists(
                 if wp.dot(gap, gap) >= h2:
                     continue
                 key = fluid_cell_hash(ci[0] + dx, ci[1] + dy, ci[2] + dz, world, cell_bits)
-                # the sort's counts are exact for every entry (an empty one counts 0)
-                start = cell_offset[key]
-                for j in range(start, start + cell_count[key]):
+                start, end = fluid_cell_range(cell_offset, key)
+                for j in range(start, end):
                     if count >= stop_at:
                         break
                     candidates += 1
@@ -320,7 +323,8 @@ class FluidNeighborSearch:
             #: sorted table entries of the slots, and the fluid index of each slot
             self.keys = wp.zeros(n, dtype=wp.int32)
             self.values = wp.zeros(n, dtype=wp.int32)
-            # particles per table entry (the last entry: left-out particles) and their first slot
+            # particles per table entry (the last entry: left-out particles) and their first slot;
+            # the counts are zero between builds
             self.cell_count = wp.zeros(self.mask + 2, dtype=wp.int32)
             self.cell_offset = wp.zeros(self.mask + 2, dtype=wp.int32)
             self.sorted_particle = wp.full(n, -1, dtype=wp.int32)
@@ -331,6 +335,9 @@ class FluidNeighborSearch:
             self.neighbors = wp.zeros(self.capacity * n, dtype=wp.int32)
             self.neighbor_count = wp.zeros(n, dtype=wp.int32)
             self.candidate_count = wp.zeros(n, dtype=wp.int32)
+            #: static-wall planes of each slot, listed by the solver after a build (which clears the counts)
+            self.wall_count = wp.zeros(n, dtype=wp.int32)
+            self.wall_plane = wp.zeros(WALL_CONTACTS_PER_SLOT * n, dtype=wp.vec4)
         #: the slot arrays as one kernel argument
         self.slots = FluidSlots()
         self.slots.particle = self.sorted_particle
@@ -338,6 +345,8 @@ class FluidNeighborSearch:
         self.slots.neighbors = self.neighbors
         self.slots.neighbor_count = self.neighbor_count
         self.slots.capacity = self.capacity
+        self.slots.wall_count = self.wall_count
+        self.slots.wall_plane = self.wall_plane
 
     def build(
         self,
@@ -355,30 +364,11 @@ class FluidNeighborSearch:
         limited to ``params[0].max_displacement`` in place (see :func:`compute_fluid_cell_keys`).
         Afterwards :attr:`sorted_xm` holds the positions and masses at ``particle_q`` in slot order.
         """
-        n = self.slot_count
-        device = particle_q.device
-        limit = particle_q_start is not None
-        wp.launch(
-            compute_fluid_cell_keys,
-            dim=n,
-            inputs=[
-                self.fluid_particle,
-                particle_flags,
-                particle_world,
-                params,
-                particle_q_start if limit else particle_q,
-                int(limit),
-                self.inv_cell,
-                self.cell_bits,
-                self.mask,
-            ],
-            outputs=[particle_q, particle_qd if limit else particle_q, self.cell_keys],
-            device=device,
-        )
+        self.compute_keys(particle_q, particle_flags, particle_world, params, particle_q_start, particle_qd)
         self.sort()
         wp.launch(
             gather_fluid_slots,
-            dim=n,
+            dim=self.slot_count,
             inputs=[
                 self.keys,
                 self.values,
@@ -393,35 +383,62 @@ class FluidNeighborSearch:
                 self.sorted_xm,
                 self.sorted_world,
                 self.slot_of_particle,
+                self.wall_count,
             ],
-            device=device,
+            device=particle_q.device,
         )
         self.scan()
+
+    def compute_keys(
+        self,
+        particle_q: wp.array,
+        particle_flags: wp.array,
+        particle_world: wp.array,
+        params: wp.array,
+        particle_q_start: wp.array | None = None,
+        particle_qd: wp.array | None = None,
+    ) -> None:
+        """Table entry of every fluid particle, counted per entry for :meth:`sort` (part of :meth:`build`)."""
+        limit = particle_q_start is not None
+        wp.launch(
+            compute_fluid_cell_keys,
+            dim=self.slot_count,
+            inputs=[
+                self.fluid_particle,
+                particle_flags,
+                particle_world,
+                params,
+                particle_q_start if limit else particle_q,
+                int(limit),
+                self.inv_cell,
+                self.cell_bits,
+                self.mask,
+            ],
+            outputs=[particle_q, particle_qd if limit else particle_q, self.cell_keys, self.cell_count, self.rank],
+            device=particle_q.device,
+        )
 
     def sort(self) -> None:
         """Counting-sort the fluid particles by their table entry (part of :meth:`build`; see the module notes).
 
-        Reads :attr:`cell_keys`; writes the sorted keys to :attr:`keys` and the fluid index of each
-        slot to :attr:`values`. Entry ``mask + 1`` holds the left-out particles, which sort last.
+        Reads :attr:`cell_keys` and the counts and ranks the key pass made; writes the sorted keys to
+        :attr:`keys` and the fluid index of each slot to :attr:`values`, and leaves the counts zero.
+        Entry ``mask + 1`` holds the left-out particles, which sort last.
         """
         n = self.slot_count
         device = self.keys.device
-        self.cell_count.zero_()
-        wp.launch(
-            count_fluid_cell_keys, dim=n, inputs=[self.cell_keys], outputs=[self.cell_count, self.rank], device=device
-        )
         wp.utils.array_scan(self.cell_count, self.cell_offset, inclusive=False)
         wp.launch(
             scatter_fluid_cell_keys,
             dim=n,
             inputs=[self.cell_keys, self.cell_offset, self.rank],
-            outputs=[self.keys, self.values],
+            outputs=[self.keys, self.values, self.cell_count],
             device=device,
         )
         wp.launch(
             order_fluid_cells,
             dim=n,
-            inputs=[self.keys, self.cell_offset, self.cell_count, self.mask],
+            inputs=[self.keys, self.cell_offset, self.mask],
             outputs=[self.values],
             device=device,
         )
@@ -435,7 +452,6 @@ class FluidNeighborSearch:
                 self.sorted_xm,
                 self.sorted_world,
                 self.cell_offset,
-                self.cell_count,
                 self.smoothing_length,
                 self.inv_cell,
                 self.cell_bits,

@@ -31,9 +31,9 @@ from .diffuse import (
 from .kernels import (
     COMPRESSION_BINS,
     MAX_DISPLACEMENT_OFF,
+    WALL_CONTACTS_PER_SLOT,
     FluidParams,
     FluidSlots,
-    accumulate_fluid_wall_density,
     advance_fluid_slots,
     apply_fluid_density_correction,
     apply_fluid_viscosity,
@@ -46,6 +46,7 @@ from .kernels import (
     gather_fluid_positions,
     gather_fluid_state,
     gather_fluid_warm_start,
+    list_fluid_wall_contacts,
     recover_nonfinite_fluid,
     store_fluid_warm_start,
 )
@@ -163,10 +164,10 @@ def fluid_memory_bytes(fluid_count: int, particle_count: int, neighbor_capacity:
 
     Per fluid particle: the neighbour list (4 bytes a slot), the sort's keys, ranks, sorted keys
     and values (16 bytes), the cell table (at least two entries a particle: count and first slot,
-    16 bytes) and about 76 bytes of per-slot state; per model particle, two 4-byte maps; per
-    diffuse particle, 28 bytes.
+    16 bytes), the static-wall planes (16 bytes each, ``WALL_CONTACTS_PER_SLOT``) and about 76 bytes
+    of per-slot state; per model particle, two 4-byte maps; per diffuse particle, 28 bytes.
     """
-    per_fluid = 4 * neighbor_capacity + 16 + 16 + 32 + 84
+    per_fluid = 4 * neighbor_capacity + 16 + 16 + 32 + 84 + 16 * WALL_CONTACTS_PER_SLOT
     return int(fluid_count * per_fluid + 12 * particle_count + 28 * diffuse)
 
 
@@ -301,8 +302,7 @@ class FluidSolver:
             self._pass_corrects = wp.zeros(1, dtype=wp.int32)
             self._compression_bins = wp.zeros(2 * COMPRESSION_BINS, dtype=float)
             self.subiterations_total = wp.zeros(1, dtype=wp.int32)
-            # static walls' share of rho / rho0 and its gradient, per slot (zero without contacts)
-            self.wall_c = wp.zeros(n, dtype=float)
+            # gradient of the static walls' share of rho / rho0 per slot, from the density pass to the correction
             self.wall_grad = wp.zeros(n, dtype=wp.vec3)
             wall_rho, wall_drho = wall_density_tables(d, h, self.mean_mass)
             self.wall_table = wp.array(wall_rho / self.lattice_density, dtype=float)
@@ -425,7 +425,10 @@ class FluidSolver:
         s, m, n = self.search, self.model, self.fluid_count
         # with the tolerance on the XPBD iterations, a converged substep skips the rest of its passes
         active = self._substep_active if self.iteration_tolerance else self._always_active
-        if not self._slots_hold_positions:
+        if self._slots_hold_positions:
+            # the step's first iteration: the walls near each slot, from the step's contacts
+            self._list_walls()
+        else:
             wp.launch(
                 gather_fluid_positions,
                 dim=n,
@@ -437,7 +440,6 @@ class FluidSolver:
         # after this iteration's correction, the gathered positions are out of date
         self._slots_hold_positions = False
         if self.config.fluid_max_iterations == 1:
-            self._accumulate_walls(active)
             self._evaluate_constraint(active, track_compression=self.iteration_tolerance)
             if self.iteration_tolerance:
                 wp.launch(
@@ -466,8 +468,7 @@ class FluidSolver:
 
     def _density_subiteration(self, particle_deltas: wp.array) -> None:
         s, n = self.search, self.fluid_count
-        # the walls are measured again where the last pass left the particles
-        self._accumulate_walls(self._loop_active)
+        # (the density pass measures the walls where the last pass left the particles)
         self._evaluate_constraint(self._loop_active, track_compression=True)
         wp.launch(
             decide_fluid_subiteration,
@@ -499,12 +500,19 @@ class FluidSolver:
             outputs=[self.warm_lambda, self.lambda_sum],
             device=self.device,
         )
-        self._accumulate_walls(active)
         wp.launch(
             apply_fluid_warm_start,
             dim=n,
-            inputs=[self.params, s.slots, active, self.warm_lambda, m.particle_inv_mass],
-            outputs=[particle_deltas, self.slot_dx, self.wall_c, self.wall_grad],
+            inputs=[
+                self.params,
+                s.slots,
+                active,
+                self.warm_lambda,
+                m.particle_inv_mass,
+                self.wall_table,
+                self.wall_table_grad,
+            ],
+            outputs=[particle_deltas, self.slot_dx],
             device=self.device,
         )
         wp.launch(advance_fluid_slots, dim=n, inputs=[s.slots, active, self.slot_dx], device=self.device)
@@ -514,35 +522,30 @@ class FluidSolver:
         wp.launch(
             apply_fluid_density_correction,
             dim=self.fluid_count,
-            inputs=[self.params, self.search.slots, active, self.lambdas, m.particle_inv_mass],
-            outputs=[particle_deltas, self.slot_dx, self.wall_c, self.wall_grad, self.lambda_sum],
+            inputs=[self.params, self.search.slots, active, self.lambdas, m.particle_inv_mass, self.wall_grad],
+            outputs=[particle_deltas, self.slot_dx, self.lambda_sum],
             device=self.device,
         )
 
-    def _accumulate_walls(self, active: wp.array) -> None:
-        """Wall density of the fluid particles where their slots hold them, from the step's particle-shape contacts."""
+    def _list_walls(self) -> None:
+        """List each slot's static walls from the step's particle-shape contacts (after the build cleared them)."""
         contacts = self.contacts
         if not self._has_walls or contacts is None:
             return
         wp.launch(
-            accumulate_fluid_wall_density,
+            list_fluid_wall_contacts,
             dim=contacts.soft_contact_max,
             inputs=[
-                self.params,
                 contacts.soft_contact_count,
                 contacts.soft_contact_particle,
                 contacts.soft_contact_shape,
                 contacts.soft_contact_body_pos,
                 contacts.soft_contact_normal,
                 contacts.soft_contact_max,
-                active,
                 self.model.shape_body,
                 self.search.slot_of_particle,
-                self.search.slots,
-                self.wall_table,
-                self.wall_table_grad,
             ],
-            outputs=[self.wall_c, self.wall_grad],
+            outputs=[self.search.slots],
             device=self.device,
         )
 
@@ -552,8 +555,8 @@ class FluidSolver:
         wp.launch(
             compute_fluid_density_lambda,
             dim=self.fluid_count,
-            inputs=[self.params, s.slots, active, self.wall_c, self.wall_grad, int(track_compression)],
-            outputs=[self.density, self.lambdas, self._compression_bins],
+            inputs=[self.params, s.slots, active, self.wall_table, self.wall_table_grad, int(track_compression)],
+            outputs=[self.density, self.lambdas, self.wall_grad, self._compression_bins],
             device=self.device,
         )
 
@@ -625,7 +628,6 @@ class FluidSolver:
             inputs=[
                 self.params,
                 s.cell_offset,
-                s.cell_count,
                 s.sorted_xm,
                 self.sorted_v,
                 s.sorted_world,
@@ -735,7 +737,7 @@ class FluidSolver:
         """Density and neighbourhood statistics of the fluid at ``state`` (synchronises; not for the hot loop)."""
         s, n = self.search, self.fluid_count
         self.build_neighborhood(state.particle_q)
-        # the statistics are of the fluid's own kernel sum (the wall shares are zero between steps)
+        # the statistics are of the fluid's own kernel sum (the build cleared the slots' walls)
         self._evaluate_constraint(self._always_active)
         self._slots_hold_positions = False
         self._summary.assign(np.array(_SUMMARY_INIT, dtype=np.float32))
