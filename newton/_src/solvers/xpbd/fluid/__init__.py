@@ -281,7 +281,8 @@ _FLUID_DOC = """
                 This is the rest density of a particle of the mean mass; a particle of mass ``m`` has
                 ``fluid_rest_density * m / mean_mass``, so groups of different particle mass at the same
                 spacing are fluids of different density in one solve.
-            fluid_cohesion: Akinci-style pair cohesion, in [0, 1]. Defaults to 0.
+            fluid_cohesion: Akinci-style pair cohesion, in [0, 1], for pairs below rest density (where the fluid is
+                at rest density the density constraint holds it). Defaults to 0.
             fluid_viscosity: Per-substep blend toward the neighbourhood velocity, in [0, 1]. Defaults to 0.
             fluid_vorticity: Vorticity confinement strength [m/s], >= 0. Defaults to 0 (off).
             fluid_relaxation: Scale of the density correction, in (0, 2]. Defaults to 1.

@@ -57,6 +57,7 @@ class FluidParams:
     cohesion_u0: float  # zero of Akinci's spline, as a fraction of h
     cohesion_in: float  # u0 / rest distance [1/m]
     cohesion_out: float  # (1 - u0) / (h - rest distance) [1/m]
+    cohesion_gate: float  # under-density (1 - rho/rho0) of a pair at which its cohesion is full
     viscosity: float  # [0, 1]
     vorticity: float  # confinement strength [m/s]
     density_tolerance: float  # mean compression at which density sub-iterations stop
@@ -180,6 +181,20 @@ def pair_share(xi4: wp.vec4, xj4: wp.vec4):
 
 
 @wp.func
+def cohesion_weight(rel_i: float, rel_j: float, p: FluidParams):
+    """Share of the cohesion a pair takes, from the pair's relative densities ``rho / rho0``.
+
+    Full where the pair is under-dense by ``cohesion_gate`` or more, none at or above rest density:
+    where the fluid is at rest density the density constraint holds it together, and cohesion
+    there would only compress it (the unilateral constraint pushes back only once compressed).
+    """
+    if p.cohesion <= 0.0:
+        return 0.0
+    under = 1.0 - 0.5 * (rel_i + rel_j)
+    return wp.clamp(under / p.cohesion_gate, 0.0, 1.0)
+
+
+@wp.func
 def correction_term(
     xi4: wp.vec4,
     lam_i: float,
@@ -203,7 +218,7 @@ def correction_term(
     dx = n * (p.spiky_grad * d * d * (lam_i + lam_j) * p.reference_mass * p.inv_rest_density * share)
     coh = wp.vec3(0.0)
     if cohesion > 0.0:
-        coh = n * (-share * akinci_cohesion(dist, p))
+        coh = n * (-share * cohesion * akinci_cohesion(dist, p))
     return wp.spatial_vector(dx, coh)
 
 
@@ -354,7 +369,7 @@ def compute_fluid_density_lambda(
     track_compression: int,
     # outputs
     density: wp.array[float],
-    lambdas: wp.array[float],
+    lambda_rho: wp.array[wp.vec2],
     wall_grad: wp.array[wp.vec3],
     compression_bins: wp.array[float],
 ):
@@ -403,7 +418,8 @@ def compute_fluid_density_lambda(
     grad_i += wall_g
     wall_grad[i] = wall_g
     density[i] = rho
-    lambdas[i] = density_constraint_lambda(rho, grad_i, grad_sq, p)
+    # the multiplier and the relative density, which the correction reads for each neighbour
+    lambda_rho[i] = wp.vec2(density_constraint_lambda(rho, grad_i, grad_sq, p), rho * p.inv_rest_density)
     if track_compression != 0:
         b = i % COMPRESSION_BINS
         wp.atomic_add(compression_bins, b, wp.max(rho * p.inv_rest_density - 1.0, 0.0))
@@ -425,7 +441,7 @@ def apply_fluid_density_correction(
     params: wp.array[FluidParams],
     slots: FluidSlots,
     active: wp.array[wp.int32],
-    lambdas: wp.array[float],
+    lambda_rho: wp.array[wp.vec2],
     particle_inv_mass: wp.array[float],
     wall_grad: wp.array[wp.vec3],
     # outputs
@@ -434,6 +450,8 @@ def apply_fluid_density_correction(
     lambda_sum: wp.array[float],
 ):
     """Add the density correction and the cohesion bias of slot ``i`` to its particle's Jacobi delta.
+
+    Each pair takes the share of the cohesion :func:`cohesion_weight` gives it.
 
     The correction is also written to ``slot_dx`` (for density sub-iterations). ``wall_grad`` is the
     walls' gradient of the density pass before it.
@@ -447,7 +465,9 @@ def apply_fluid_density_correction(
         return
     p = params[0]
     xi4 = slots.xm[i]
-    lam_i = lambdas[i]
+    lr_i = lambda_rho[i]
+    lam_i = lr_i[0]
+    rel_i = lr_i[1]
     wall_g = wall_grad[i]
     acc = wp.spatial_vector(wp.vec3(0.0), wp.vec3(0.0))
     count = fluid_neighbor_count(slots, i)
@@ -456,12 +476,18 @@ def apply_fluid_density_correction(
     while k + 1 < count:
         j0 = fluid_neighbor(slots, i, k)
         j1 = fluid_neighbor(slots, i, k + 1)
-        acc += correction_term(xi4, lam_i, slots.xm[j0], lambdas[j0], pi, slots.particle, j0, p, p.cohesion)
-        acc += correction_term(xi4, lam_i, slots.xm[j1], lambdas[j1], pi, slots.particle, j1, p, p.cohesion)
+        lr0 = lambda_rho[j0]
+        lr1 = lambda_rho[j1]
+        c0 = cohesion_weight(rel_i, lr0[1], p)
+        c1 = cohesion_weight(rel_i, lr1[1], p)
+        acc += correction_term(xi4, lam_i, slots.xm[j0], lr0[0], pi, slots.particle, j0, p, c0)
+        acc += correction_term(xi4, lam_i, slots.xm[j1], lr1[0], pi, slots.particle, j1, p, c1)
         k += 2
     if k < count:
         j = fluid_neighbor(slots, i, k)
-        acc += correction_term(xi4, lam_i, slots.xm[j], lambdas[j], pi, slots.particle, j, p, p.cohesion)
+        lr = lambda_rho[j]
+        c = cohesion_weight(rel_i, lr[1], p)
+        acc += correction_term(xi4, lam_i, slots.xm[j], lr[0], pi, slots.particle, j, p, c)
     dx = wp.spatial_top(acc) + wall_g * lam_i
     coh = wp.spatial_bottom(acc)
     dx = relaxed_correction(dx, p)

@@ -65,6 +65,8 @@ COHESION_DISPLACEMENT = 0.0025
 FULL_NEIGHBOR_FACTOR = 4
 # samples of the wall density tables over [0, h]
 WALL_TABLE_SIZE = 64
+# a pair under-dense by this fraction of the rest density takes the full cohesion, at rest density none
+COHESION_GATE = 0.02
 # zero of Akinci's cohesion spline, as a fraction of h: 2 (1-u)^3 u^3 = 1/64
 AKINCI_ZERO = 0.5 * (1.0 - math.sqrt(1.0 - 4.0 * (1.0 / 128.0) ** (1.0 / 3.0)))
 
@@ -280,7 +282,8 @@ class FluidSolver:
             n = self.fluid_count
             self.params = wp.zeros(1, dtype=FluidParams)
             self.density = wp.zeros(n, dtype=float)
-            self.lambdas = wp.zeros(n, dtype=float)
+            #: multiplier (x) and relative density rho / rho0 (y) of each slot, from the last density pass
+            self.lambda_rho = wp.zeros(n, dtype=wp.vec2)
             self.sorted_v = wp.zeros(n, dtype=wp.vec3)
             self.vorticity = wp.zeros(n, dtype=wp.vec3)
             self.slot_dx = wp.zeros(n, dtype=wp.vec3)
@@ -366,6 +369,7 @@ class FluidSolver:
         p.cohesion_u0 = AKINCI_ZERO
         p.cohesion_in = AKINCI_ZERO / d
         p.cohesion_out = (1.0 - AKINCI_ZERO) / (h - d)
+        p.cohesion_gate = COHESION_GATE
         p.viscosity = c.fluid_viscosity
         p.vorticity = c.fluid_vorticity
         p.density_tolerance = c.fluid_density_tolerance
@@ -522,7 +526,14 @@ class FluidSolver:
         wp.launch(
             apply_fluid_density_correction,
             dim=self.fluid_count,
-            inputs=[self.params, self.search.slots, active, self.lambdas, m.particle_inv_mass, self.wall_grad],
+            inputs=[
+                self.params,
+                self.search.slots,
+                active,
+                self.lambda_rho,
+                m.particle_inv_mass,
+                self.wall_grad,
+            ],
             outputs=[particle_deltas, self.slot_dx, self.lambda_sum],
             device=self.device,
         )
@@ -556,7 +567,7 @@ class FluidSolver:
             compute_fluid_density_lambda,
             dim=self.fluid_count,
             inputs=[self.params, s.slots, active, self.wall_table, self.wall_table_grad, int(track_compression)],
-            outputs=[self.density, self.lambdas, self.wall_grad, self._compression_bins],
+            outputs=[self.density, self.lambda_rho, self.wall_grad, self._compression_bins],
             device=self.device,
         )
 
