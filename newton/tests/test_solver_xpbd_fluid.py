@@ -371,6 +371,39 @@ def test_neighbor_cap(test, device):
     test.assertTrue(np.isfinite(capped.q()).all())
 
 
+def test_sort_orders_each_cell_by_fluid_index(test, device):
+    # the scatter's atomic ranks arrive in any order on a GPU; the build puts each cell's slots in
+    # fluid-index order so that a run does not depend on them (and leaves the cell counts zero)
+    rng = np.random.default_rng(7)
+
+    def build(b):
+        for x in rng.uniform(0.0, 0.6, size=(400, 3)):
+            b.add_particle(pos=wp.vec3(*x), vel=wp.vec3(0.0), mass=MASS, radius=0.5 * D, flags=FLUID)
+        for _ in range(40):  # one crowded cell
+            b.add_particle(pos=wp.vec3(0.05, 0.05, 0.05), vel=wp.vec3(0.0), mass=MASS, radius=0.5 * D, flags=FLUID)
+        for x in rng.uniform(0.0, 0.6, size=(30, 3)):  # inactive: left out, last
+            b.add_particle(
+                pos=wp.vec3(*x), vel=wp.vec3(0.0), mass=MASS, radius=0.5 * D, flags=int(newton.ParticleFlags.FLUID)
+            )
+
+    solver = Sim(make_model(device, build)).solver
+    search = solver._fluid.search
+    for _ in range(2):
+        search.build(
+            *(getattr(solver.model, a) for a in ("particle_q", "particle_mass", "particle_flags", "particle_world")),
+            solver._fluid.params,
+        )
+        keys, values = search.keys.numpy(), search.values.numpy()
+        test.assertEqual(sorted(values.tolist()), list(range(len(values))))
+        test.assertTrue(np.all(np.diff(keys) >= 0))
+        inside = keys <= search.mask
+        test.assertEqual(np.count_nonzero(~inside), 30)
+        same_cell = (keys[1:] == keys[:-1]) & inside[1:]
+        test.assertTrue(np.all(np.diff(values)[same_cell] > 0))
+        test.assertGreaterEqual(np.bincount(keys[inside]).max(), 40)
+        test.assertEqual(np.count_nonzero(search.cell_count.numpy()), 0)
+
+
 def test_coincident_particles_separate_deterministically(test, device):
     def build(b):
         for _ in range(4):

@@ -206,7 +206,12 @@ def correction_term(
     p: FluidParams,
     cohesion: float,
 ):
-    """Neighbour ``j``'s density correction (top) and unscaled cohesion pull (bottom, zero unless ``cohesion`` > 0) on slot ``i``."""
+    """Neighbour ``j``'s density correction (top) and its cohesion pull (bottom) on slot ``i``.
+
+    The pull is weighted by ``cohesion`` (the pair's share, :func:`cohesion_weight`) and not yet scaled
+    by the strength. It is evaluated for every pair while cohesion is on, also where the share is 0:
+    a branch on the share diverges within a warp (measured 0.01 ms per frame slower at 100k, 0.05 ms at 1M).
+    """
     r = wp.vec3(xi4[0] - xj4[0], xi4[1] - xj4[1], xi4[2] - xj4[2])
     r2 = wp.dot(r, r)
     if r2 >= p.h2:
@@ -217,7 +222,7 @@ def correction_term(
     share = pair_share(xi4, xj4)
     dx = n * (p.spiky_grad * d * d * (lam_i + lam_j) * p.reference_mass * p.inv_rest_density * share)
     coh = wp.vec3(0.0)
-    if cohesion > 0.0:
+    if p.cohesion > 0.0:
         coh = n * (-share * cohesion * akinci_cohesion(dist, p))
     return wp.spatial_vector(dx, coh)
 

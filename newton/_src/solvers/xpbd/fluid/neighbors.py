@@ -139,7 +139,7 @@ def scatter_fluid_cell_keys(
     rank: wp.array[wp.int32],
     # outputs
     keys: wp.array[wp.int32],
-    values: wp.array[wp.int32],
+    scattered: wp.array[wp.int32],
     cell_count: wp.array[wp.int32],
 ):
     """Put every particle in its slot, and clear the counts for the next build (all have been used)."""
@@ -147,36 +147,38 @@ def scatter_fluid_cell_keys(
     key = cell_keys[k]
     slot = cell_offset[key] + rank[k]
     keys[slot] = key
-    values[slot] = k
+    scattered[slot] = k
     cell_count[key] = 0
 
 
 @wp.kernel
 def order_fluid_cells(
     keys: wp.array[wp.int32],
+    scattered: wp.array[wp.int32],
     cell_offset: wp.array[wp.int32],
     mask: int,
-    # in/out
+    # outputs
     values: wp.array[wp.int32],
 ):
-    """Order each cell's slots by fluid index (the atomic ranks of the scatter arrive in any order).
+    """Put each cell's slots in fluid-index order (the atomic ranks of the scatter arrive in any order).
 
-    The left-out particles' entry is not ordered: they take no part in the solve, and one thread
-    ordering them (an insertion sort) would take time quadratic in their number, which is large
-    when a scene keeps a pool of inactive fluid particles.
+    Each slot counts the fluid indices of its cell below its own and moves its index to that place:
+    all slots work at once, each reading its cell's few indices. The left-out particles' entry is
+    not ordered: they take no part in the solve, and a large pool of them (a scene that keeps
+    inactive fluid particles in reserve) would cost time quadratic in its size.
     """
     i = wp.tid()
     key = keys[i]
-    if key > mask or cell_offset[key] != i:
+    v = scattered[i]
+    if key > mask:
+        values[i] = v
         return
-    end = cell_offset[key + 1]
-    for a in range(i + 1, end):
-        v = values[a]
-        b = a - 1
-        while b >= i and values[b] > v:
-            values[b + 1] = values[b]
-            b -= 1
-        values[b + 1] = v
+    start, end = fluid_cell_range(cell_offset, key)
+    place = start
+    for a in range(start, end):
+        if scattered[a] < v:
+            place += 1
+    values[place] = v
 
 
 @wp.kernel
@@ -323,6 +325,8 @@ class FluidNeighborSearch:
             #: sorted table entries of the slots, and the fluid index of each slot
             self.keys = wp.zeros(n, dtype=wp.int32)
             self.values = wp.zeros(n, dtype=wp.int32)
+            # fluid index of each slot as scattered, before each cell is put in order
+            self.scattered = wp.zeros(n, dtype=wp.int32)
             # particles per table entry (the last entry: left-out particles) and their first slot;
             # the counts are zero between builds
             self.cell_count = wp.zeros(self.mask + 2, dtype=wp.int32)
@@ -432,13 +436,13 @@ class FluidNeighborSearch:
             scatter_fluid_cell_keys,
             dim=n,
             inputs=[self.cell_keys, self.cell_offset, self.rank],
-            outputs=[self.keys, self.values, self.cell_count],
+            outputs=[self.keys, self.scattered, self.cell_count],
             device=device,
         )
         wp.launch(
             order_fluid_cells,
             dim=n,
-            inputs=[self.keys, self.cell_offset, self.mask],
+            inputs=[self.keys, self.scattered, self.cell_offset, self.mask],
             outputs=[self.values],
             device=device,
         )
