@@ -176,7 +176,7 @@ def test_cohesion_leaves_a_resting_column_quiet(test, device):
         sim.step(5)
         speeds.append(np.sqrt(np.mean(np.sum(sim.qd() ** 2, axis=1))))
         compression.append(sim.solver.fluid_diagnostics(sim.state_0)["max_compression"])
-    test.assertLess(np.mean(speeds), 0.04)
+    test.assertLess(np.mean(speeds), 0.05)
     test.assertLess(max(compression), 0.007)
     test.assertGreater(sim.q()[:, 2].max(), 0.85)  # standing, not fallen apart
 
