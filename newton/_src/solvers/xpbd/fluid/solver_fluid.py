@@ -166,7 +166,7 @@ def fluid_memory_bytes(fluid_count: int, particle_count: int, neighbor_capacity:
 
     Per fluid particle: the neighbour list (4 bytes a slot), the sort's keys, ranks, sorted keys,
     scattered and ordered values (20 bytes), the cell table (at least two entries a particle: count and first slot,
-    16 bytes), the static-wall planes (16 bytes each, ``WALL_CONTACTS_PER_SLOT``) and about 76 bytes
+    16 bytes), the static-wall planes (16 bytes each, ``WALL_CONTACTS_PER_SLOT``) and about 84 bytes
     of per-slot state; per model particle, two 4-byte maps; per diffuse particle, 28 bytes.
     """
     per_fluid = 4 * neighbor_capacity + 20 + 16 + 32 + 84 + 16 * WALL_CONTACTS_PER_SLOT
