@@ -30,6 +30,7 @@ import numpy as np
 import warp as wp
 
 import newton
+from newton._src.solvers.xpbd.fluid import neighbors
 from newton._src.solvers.xpbd.fluid.solver_fluid import wall_density_tables
 from newton.examples.fluid.example_fluid_xpbd_dam_break import TANK_HALF_LENGTH, add_dam_break
 
@@ -170,10 +171,10 @@ def pass_breakdown(solver, collision, states, contacts, substeps: int, iteration
     m = solver.model
 
     def sorts():
-        # keys and sort alone, at the positions of the last build (the key pass counts for the sort)
+        # keys, sort and gather alone, at the positions of the last build (the key pass counts for the sort)
         for _ in range(substeps):
             search.compute_keys(states[0].particle_q, m.particle_flags, m.particle_world, fluid.params)
-            search.sort()
+            search.sort(states[0].particle_q, m.particle_mass, m.particle_world)
 
     def lists():
         # the scan alone, on the slots of the last build (inputs unchanged between launches)
@@ -205,6 +206,8 @@ def run(args) -> dict:
     dt = frame_dt / args.substeps
     model.soft_contact_mu = 0.0
     model.particle_max_velocity = args.speed_clamp * 0.5 * spacing / dt if args.speed_clamp > 0 else 1.0e5
+    if args.scan_lanes:
+        neighbors.SCAN_LANES = args.scan_lanes
     solver = newton.solvers.SolverXPBD(
         model,
         iterations=args.iterations,
@@ -304,6 +307,7 @@ def run(args) -> dict:
         "diffuse_emitted": int(solver.diffuse_emitted_count.numpy()[0]) if args.diffuse else 0,
         "speed_clamp_radii_per_substep": args.speed_clamp,
         "cuda_graph": graph is not None,
+        "scan_lanes": getattr(solver._fluid.search, "lanes", 1),
         "sim_time_s": (args.warmup_frames + 2 + args.trials * args.frames) * frame_dt,
         "ms_per_frame_median": statistics.median(trials),
         "ms_per_frame_trials": trials,
@@ -328,6 +332,9 @@ def main(argv=None):
     parser.add_argument("--viscosity", type=float, default=0.05)
     parser.add_argument("--diffuse", type=int, default=0, help="max_diffuse_particles (0: off)")
     parser.add_argument("--speed-clamp", type=float, default=0.5, help="max displacement per substep [radii]; 0: off")
+    parser.add_argument(
+        "--scan-lanes", type=int, default=0, help="threads per particle of the neighbour scan (0: the solver's choice)"
+    )
     parser.add_argument("--warmup-frames", type=int, default=60)
     parser.add_argument("--frames", type=int, default=30, help="frames per timed trial")
     parser.add_argument("--trials", type=int, default=5)

@@ -258,7 +258,9 @@ def test_particle_count_beyond_free_memory(test, device):
         for value in vars(owner).values():
             if isinstance(value, wp.array):
                 allocated += value.capacity
-    estimate = solver_fluid.fluid_memory_bytes(125, model.particle_count, fluid.search.capacity)
+    estimate = solver_fluid.fluid_memory_bytes(
+        125, model.particle_count, fluid.search.capacity, lanes=fluid.search.lanes
+    )
     test.assertGreater(estimate, 0.8 * allocated)
     test.assertLess(estimate, 2.0 * allocated)
     # more than is free: a clear error before anything is allocated

@@ -10,8 +10,16 @@ import warp as wp
 from newton.tests.unittest_utils import add_function_test, get_test_devices
 
 import newton
-from newton._src.solvers.xpbd.fluid.kernels import WALL_CONTACTS_PER_SLOT, FluidParams, FluidSlots, fluid_wall_share
-from newton._src.solvers.xpbd.fluid.solver_fluid import wall_density_tables
+from newton._src.solvers.xpbd.fluid.kernels import (
+    WALL_CONTACTS_PER_SLOT,
+    FluidParams,
+    FluidSlots,
+    fluid_neighbor,
+    fluid_neighbor_layout,
+    fluid_wall_share,
+)
+from newton._src.solvers.xpbd.fluid.neighbors import FluidNeighborSearch
+from newton._src.solvers.xpbd.fluid.solver_fluid import FULL_NEIGHBOR_FACTOR, wall_density_tables
 
 FLUID = int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID)
 D = 0.1  # rest distance [m]
@@ -404,6 +412,75 @@ def test_sort_orders_each_cell_by_fluid_index(test, device):
         test.assertEqual(np.count_nonzero(search.cell_count.numpy()), 0)
 
 
+@wp.kernel
+def read_neighbor_lists(slots: FluidSlots, out: wp.array2d[wp.int32], count: wp.array[wp.int32]):
+    i = wp.tid()
+    layout = fluid_neighbor_layout(slots, i)
+    count[i] = layout[2]
+    for k in range(wp.min(layout[2], out.shape[1])):
+        out[i, k] = fluid_neighbor(slots, i, k, layout)
+
+
+def test_scan_lanes_list_the_same_neighbors(test, device):
+    # one to three threads per particle each list a part of the 27 cells: read lane after lane, the
+    # lists must be those of one thread (same neighbours, same order, so the same sums), and exact
+    rng = np.random.default_rng(11)
+    q = np.vstack([rng.uniform(0.0, 0.6, size=(300, 3)), np.full((12, 3), 0.21)]).astype(np.float32)
+    n = len(q)
+    h = 1.8 * D
+    particle_q = wp.array(q, dtype=wp.vec3, device=device)
+    mass = wp.full(n, MASS, dtype=float, device=device)
+    flags = wp.full(n, int(FLUID), dtype=wp.int32, device=device)
+    world = wp.zeros(n, dtype=wp.int32, device=device)
+    params = wp.zeros(1, dtype=FluidParams, device=device)
+    lists = {}
+    for lanes in (1, 2, 3):
+        search = FluidNeighborSearch(
+            wp.array(np.arange(n, dtype=np.int32), dtype=wp.int32, device=device), n, 1, h, 120, False, lanes=lanes
+        )
+        test.assertEqual(search.lanes, lanes)
+        search.build(particle_q, mass, flags, world, params)
+        out = wp.full((n, 120), -1, dtype=wp.int32, device=device)
+        count = wp.zeros(n, dtype=wp.int32, device=device)
+        wp.launch(read_neighbor_lists, dim=n, inputs=[search.slots], outputs=[out, count], device=device)
+        lists[lanes] = (out.numpy(), count.numpy(), search.sorted_particle.numpy())
+    out, count, particle = lists[1]
+    for lanes in (2, 3):
+        np.testing.assert_array_equal(lists[lanes][0], out)
+        np.testing.assert_array_equal(lists[lanes][1], count)
+    d2 = np.sum((q[:, None, :].astype(np.float64) - q[None, :, :]) ** 2, axis=-1)
+    # (pairs within float rounding of h may go either way)
+    for i in range(n):
+        found = set(particle[out[i, : count[i]]].tolist())
+        test.assertEqual(len(found), count[i])
+        row = d2[particle[i]]
+        inside = {j for j in np.flatnonzero(row < h * h * (1.0 - 1.0e-5)) if j != particle[i]}
+        near = {j for j in np.flatnonzero(row < h * h * (1.0 + 1.0e-5)) if j != particle[i]}
+        test.assertTrue(inside <= found <= near)
+    test.assertGreater(count.max(), 30)
+    # a block at 0.7 spacings (about 3x the rest neighbours) fits the lanes' rows as it fits one
+    # lane's: one-sided neighbourhoods at its faces put most of a list in one lane
+    block = make_model(device, lambda b: add_block(b, (6, 6, 6), spacing=0.7 * D, jitter=0.1 * D))
+    fluid = Sim(block).solver._fluid
+    m = block.particle_count
+    for lanes in (1, 2, 3):
+        search = FluidNeighborSearch(
+            wp.array(np.arange(m, dtype=np.int32), dtype=wp.int32, device=device),
+            m,
+            1,
+            h,
+            FULL_NEIGHBOR_FACTOR * fluid.rest_lattice_neighbors,
+            False,
+            lanes=lanes,
+        )
+        search.build(block.particle_q, block.particle_mass, block.particle_flags, block.particle_world, params)
+        found = search.neighbor_count.numpy().reshape(lanes, m)
+        test.assertLessEqual(found.max(), search.lane_capacity)
+        test.assertGreater(found.sum(axis=0).max(), 70)
+    with test.assertRaises(ValueError):
+        FluidNeighborSearch(wp.zeros(4, dtype=wp.int32, device=device), 4, 1, h, 8, True, lanes=2)
+
+
 def test_coincident_particles_separate_deterministically(test, device):
     def build(b):
         for _ in range(4):
@@ -654,6 +731,8 @@ def test_wall_density_does_not_depend_on_contact_order(test, device):
         slots.neighbors = wp.zeros(n, dtype=wp.int32, device=device)
         slots.neighbor_count = wp.zeros(n, dtype=wp.int32, device=device)
         slots.capacity = 1
+        slots.lanes = 1
+        slots.lane_capacity = 1
         plane = np.zeros((WALL_CONTACTS_PER_SLOT, n, 4), dtype=np.float32)
         for i, listed in enumerate(lists):
             plane[: len(listed), i] = listed

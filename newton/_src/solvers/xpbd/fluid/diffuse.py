@@ -30,7 +30,7 @@ so the passes can be captured in a graph. Nothing here feeds back into the fluid
 import warp as wp
 
 from ....geometry import GeoType
-from .kernels import FluidParams, FluidSlots, fluid_neighbor, fluid_neighbor_count
+from .kernels import FluidParams, FluidSlots, fluid_neighbor, fluid_neighbor_layout
 from .neighbors import _NO_WORLD, fluid_cell, fluid_cell_hash, fluid_cell_range
 
 DIFFUSE_DEAD = wp.constant(-1)
@@ -104,9 +104,10 @@ def emit_diffuse_particles(
     xi = wp.vec3(xi4[0], xi4[1], xi4[2])
     trapped_air = float(0.0)
     normal = wp.vec3(0.0)
-    count = fluid_neighbor_count(slots, i)
+    layout = fluid_neighbor_layout(slots, i)
+    count = layout[2]
     for k in range(count):
-        j = fluid_neighbor(slots, i, k)
+        j = fluid_neighbor(slots, i, k, layout)
         xj4 = slots.xm[j]
         xij = xi - wp.vec3(xj4[0], xj4[1], xj4[2])
         r = wp.length(xij)

@@ -72,9 +72,11 @@ class FluidSlots:
 
     particle: wp.array[wp.int32]  # particle index of each slot, -1 for a left-out particle
     xm: wp.array[wp.vec4]  # gathered position [m] (xyz) and mass [kg] (w)
-    neighbors: wp.array[wp.int32]  # neighbour slots, transposed: neighbors[k * slot_count + i]
-    neighbor_count: wp.array[wp.int32]  # neighbours found (may exceed capacity)
-    capacity: int  # neighbours stored per slot
+    neighbors: wp.array[wp.int32]  # neighbour slots, transposed: neighbors[row * slot_count + i]
+    neighbor_count: wp.array[wp.int32]  # neighbours found by each lane of the scan: [lane * slot_count + i]
+    capacity: int  # neighbours stored per slot, all lanes together (lanes * lane_capacity)
+    lanes: int  # scan threads per slot (1, 2 or 3), each listing a part of the 27 cells
+    lane_capacity: int  # list rows of each lane: lane l stores its finds in rows [l, l + 1) * lane_capacity
     wall_count: wp.array[wp.int32]  # static-wall contacts listed for the slot (may exceed WALL_CONTACTS_PER_SLOT)
     wall_plane: wp.array[wp.vec4]  # their planes, transposed: unit normal (xyz) and offset n . p [m] (w)
 
@@ -144,15 +146,33 @@ def akinci_cohesion(dist: float, p: FluidParams):
 
 
 @wp.func
-def fluid_neighbor(slots: FluidSlots, i: int, k: int):
-    """Slot of the ``k``-th neighbour of slot ``i`` (lists are stored transposed for coalescing)."""
-    return slots.neighbors[k * slots.particle.shape[0] + i]
+def fluid_neighbor_layout(slots: FluidSlots, i: int):
+    """Where slot ``i``'s stored neighbours end, lane by lane: ``(lane 0, lanes 0-1, all)``.
+
+    ``layout[2]`` is the number of stored neighbours; pass the layout to :func:`fluid_neighbor`.
+    """
+    n = slots.particle.shape[0]
+    cap = slots.lane_capacity
+    end0 = wp.min(slots.neighbor_count[i], cap)
+    end1 = end0
+    if slots.lanes > 1:
+        end1 += wp.min(slots.neighbor_count[n + i], cap)
+    end2 = end1
+    if slots.lanes > 2:
+        end2 += wp.min(slots.neighbor_count[2 * n + i], cap)
+    return wp.vec3i(end0, end1, end2)
 
 
 @wp.func
-def fluid_neighbor_count(slots: FluidSlots, i: int):
-    """Number of stored neighbours of slot ``i``."""
-    return wp.min(slots.neighbor_count[i], slots.capacity)
+def fluid_neighbor(slots: FluidSlots, i: int, k: int, layout: wp.vec3i):
+    """Slot of the ``k``-th neighbour of slot ``i`` (``k < layout[2]``; see :func:`fluid_neighbor_layout`).
+
+    The lanes' finds are read one lane after the other, so ``k`` runs through the 27 cells in the
+    same order whatever the number of lanes. Lists are stored transposed for coalescing.
+    """
+    cap = slots.lane_capacity
+    row = k + wp.where(k >= layout[0], cap - layout[0], 0) + wp.where(k >= layout[1], cap + layout[0] - layout[1], 0)
+    return slots.neighbors[row * slots.particle.shape[0] + i]
 
 
 @wp.func
@@ -395,12 +415,13 @@ def compute_fluid_density_lambda(
     rho = p.reference_mass * poly6(0.0, p)
     grad_i = wp.vec3(0.0)
     grad_sq = float(0.0)
-    count = fluid_neighbor_count(slots, i)
+    layout = fluid_neighbor_layout(slots, i)
+    count = layout[2]
     # two neighbours per trip: their loads are independent and overlap
     k = int(0)
     while k + 1 < count:
-        j0 = fluid_neighbor(slots, i, k)
-        j1 = fluid_neighbor(slots, i, k + 1)
+        j0 = fluid_neighbor(slots, i, k, layout)
+        j1 = fluid_neighbor(slots, i, k + 1, layout)
         t0 = density_term(xi, slots.xm[j0], pi, slots.particle, j0, p)
         t1 = density_term(xi, slots.xm[j1], pi, slots.particle, j1, p)
         g0 = wp.vec3(t0[0], t0[1], t0[2])
@@ -410,7 +431,7 @@ def compute_fluid_density_lambda(
         grad_sq += wp.dot(g0, g0) + wp.dot(g1, g1)
         k += 2
     if k < count:
-        j = fluid_neighbor(slots, i, k)
+        j = fluid_neighbor(slots, i, k, layout)
         t = density_term(xi, slots.xm[j], pi, slots.particle, j, p)
         g = wp.vec3(t[0], t[1], t[2])
         rho += t[3]
@@ -475,12 +496,13 @@ def apply_fluid_density_correction(
     rel_i = lr_i[1]
     wall_g = wall_grad[i]
     acc = wp.spatial_vector(wp.vec3(0.0), wp.vec3(0.0))
-    count = fluid_neighbor_count(slots, i)
+    layout = fluid_neighbor_layout(slots, i)
+    count = layout[2]
     # two neighbours per trip: their loads are independent and overlap
     k = int(0)
     while k + 1 < count:
-        j0 = fluid_neighbor(slots, i, k)
-        j1 = fluid_neighbor(slots, i, k + 1)
+        j0 = fluid_neighbor(slots, i, k, layout)
+        j1 = fluid_neighbor(slots, i, k + 1, layout)
         lr0 = lambda_rho[j0]
         lr1 = lambda_rho[j1]
         c0 = cohesion_weight(rel_i, lr0[1], p)
@@ -489,7 +511,7 @@ def apply_fluid_density_correction(
         acc += correction_term(xi4, lam_i, slots.xm[j1], lr1[0], pi, slots.particle, j1, p, c1)
         k += 2
     if k < count:
-        j = fluid_neighbor(slots, i, k)
+        j = fluid_neighbor(slots, i, k, layout)
         lr = lambda_rho[j]
         c = cohesion_weight(rel_i, lr[1], p)
         acc += correction_term(xi4, lam_i, slots.xm[j], lr[0], pi, slots.particle, j, p, c)
@@ -562,9 +584,10 @@ def apply_fluid_warm_start(
     xi = wp.vec3(xi4[0], xi4[1], xi4[2])
     wall = fluid_wall_share(slots, i, xi, p, wall_table, wall_table_grad)
     dx = wp.vec3(wall[0], wall[1], wall[2]) * lam_i
-    count = fluid_neighbor_count(slots, i)
+    layout = fluid_neighbor_layout(slots, i)
+    count = layout[2]
     for k in range(count):
-        j = fluid_neighbor(slots, i, k)
+        j = fluid_neighbor(slots, i, k, layout)
         # the multipliers alone: no cohesion
         dx += wp.spatial_top(correction_term(xi4, lam_i, slots.xm[j], warm_lambda[j], pi, slots.particle, j, p, 0.0))
     dx = relaxed_correction(dx, p)
@@ -629,9 +652,10 @@ def apply_fluid_viscosity(
     num = vi * w_self
     den = w_self
     omega = wp.vec3(0.0)
-    count = fluid_neighbor_count(slots, i)
+    layout = fluid_neighbor_layout(slots, i)
+    count = layout[2]
     for k in range(count):
-        j = fluid_neighbor(slots, i, k)
+        j = fluid_neighbor(slots, i, k, layout)
         xj4 = slots.xm[j]
         r = xi - wp.vec3(xj4[0], xj4[1], xj4[2])
         r2 = wp.dot(r, r)
@@ -670,9 +694,10 @@ def apply_vorticity_confinement(
     xi4 = slots.xm[i]
     xi = wp.vec3(xi4[0], xi4[1], xi4[2])
     eta = wp.vec3(0.0)
-    count = fluid_neighbor_count(slots, i)
+    layout = fluid_neighbor_layout(slots, i)
+    count = layout[2]
     for k in range(count):
-        j = fluid_neighbor(slots, i, k)
+        j = fluid_neighbor(slots, i, k, layout)
         xj4 = slots.xm[j]
         r = xi - wp.vec3(xj4[0], xj4[1], xj4[2])
         r2 = wp.dot(r, r)

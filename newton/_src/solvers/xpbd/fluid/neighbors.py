@@ -16,8 +16,10 @@ Once per substep, after prediction:
    ranks arrive in any order on a GPU), so particles of one cell of one world are contiguous and
    the order is the same on every run; an entry's slots run from its first slot to the next
    entry's (:func:`fluid_cell_range`; an empty entry has none);
-3. positions, masses and worlds are gathered into slot order; each slot then scans the 27
-   cells around it and keeps the slots of the same world closer than ``h``.
+3. positions, masses and worlds are gathered into slot order (by the pass that orders the
+   entries); each slot then scans the 27 cells around it and keeps the slots of the same world
+   closer than ``h``, in up to three threads that each list a share of the cells
+   (:func:`scan_lanes`).
 
 Because every world has its own block of the table, worlds that overlap in space (``replicate``
 with no spacing) never share an entry: each particle only scans candidates of its own world.
@@ -40,6 +42,11 @@ from .kernels import MAX_DISPLACEMENT_OFF, WALL_CONTACTS_PER_SLOT, FluidParams, 
 
 # sentinel world index of a slot with no particle; real world indices are >= -1
 _NO_WORLD = -2
+# threads per particle in the scan of the full neighbourhood (each lists a part of the 27 cells);
+# 0: by the particle count and the device (:func:`scan_lanes`)
+SCAN_LANES = 0
+# threads an SM of a CUDA device keeps resident (2048 on every architecture Warp supports)
+_THREADS_PER_SM = 2048
 
 
 @wp.func
@@ -156,61 +163,52 @@ def order_fluid_cells(
     keys: wp.array[wp.int32],
     scattered: wp.array[wp.int32],
     cell_offset: wp.array[wp.int32],
-    mask: int,
-    # outputs
-    values: wp.array[wp.int32],
-):
-    """Put each cell's slots in fluid-index order (the atomic ranks of the scatter arrive in any order).
-
-    Each slot counts the fluid indices of its cell below its own and moves its index to that place:
-    all slots work at once, each reading its cell's few indices. The left-out particles' entry is
-    not ordered: they take no part in the solve, and a large pool of them (a scene that keeps
-    inactive fluid particles in reserve) would cost time quadratic in its size.
-    """
-    i = wp.tid()
-    key = keys[i]
-    v = scattered[i]
-    if key > mask:
-        values[i] = v
-        return
-    start, end = fluid_cell_range(cell_offset, key)
-    place = start
-    for a in range(start, end):
-        if scattered[a] < v:
-            place += 1
-    values[place] = v
-
-
-@wp.kernel
-def gather_fluid_slots(
-    keys: wp.array[wp.int32],
-    values: wp.array[wp.int32],
     fluid_particle: wp.array[wp.int32],
     particle_q: wp.array[wp.vec3],
     particle_mass: wp.array[float],
     particle_world: wp.array[wp.int32],
     mask: int,
     # outputs
+    values: wp.array[wp.int32],
     sorted_particle: wp.array[wp.int32],
     sorted_xm: wp.array[wp.vec4],
     sorted_world: wp.array[wp.int32],
     slot_of_particle: wp.array[wp.int32],
     wall_count: wp.array[wp.int32],
 ):
-    """Gather the particles into slot order (and clear the slots' wall lists, which belong to the last order)."""
+    """Put each cell's slots in fluid-index order and gather the particles into them.
+
+    The atomic ranks of the scatter arrive in any order: each slot counts the fluid indices of its
+    cell below its own and moves its particle to that place, all slots at once, each reading its
+    cell's few indices; the place is the particle's slot, so the gather of its position, mass and
+    world happens here (no pass of its own). The slot's wall list, which belongs to the last order,
+    is cleared. The left-out particles' entry is not ordered: they take no part in the solve, and a
+    large pool of them (a scene that keeps inactive fluid particles in reserve) would cost time
+    quadratic in its size.
+    """
     i = wp.tid()
-    wall_count[i] = 0
-    pi = fluid_particle[values[i]]
-    if keys[i] > mask:
-        sorted_particle[i] = -1
-        sorted_world[i] = _NO_WORLD
+    key = keys[i]
+    v = scattered[i]
+    place = i
+    if key <= mask:
+        start, end = fluid_cell_range(cell_offset, key)
+        place = start
+        for a in range(start, end):
+            if scattered[a] < v:
+                place += 1
+    values[place] = v
+    wall_count[place] = 0
+    pi = fluid_particle[v]
+    if key > mask:
+        sorted_particle[place] = -1
+        sorted_world[place] = _NO_WORLD
         slot_of_particle[pi] = -1
         return
     x = particle_q[pi]
-    sorted_particle[i] = pi
-    slot_of_particle[pi] = i
-    sorted_xm[i] = wp.vec4(x[0], x[1], x[2], particle_mass[pi])
-    sorted_world[i] = particle_world[pi]
+    sorted_particle[place] = pi
+    slot_of_particle[pi] = place
+    sorted_xm[place] = wp.vec4(x[0], x[1], x[2], particle_mass[pi])
+    sorted_world[place] = particle_world[pi]
 
 
 @wp.kernel
@@ -221,27 +219,43 @@ def build_fluid_neighbor_lists(
     h: float,
     inv_cell: float,
     cell_bits: int,
-    capacity: int,
+    lanes: int,
+    lane_capacity: int,
     stop_at: int,
     # outputs
     neighbors: wp.array[wp.int32],
     neighbor_count: wp.array[wp.int32],
     candidate_count: wp.array[wp.int32],
 ):
-    """List the slots within ``h`` of slot ``i`` (same world), stored transposed: ``neighbors[k * n + i]``.
+    """List the slots within ``h`` of slot ``i`` (same world), stored transposed: ``neighbors[row * n + i]``.
 
-    ``neighbor_count`` receives the number found, which exceeds ``capacity`` when the list overflowed
-    (only the first ``capacity`` are stored). The scan stops once ``stop_at`` neighbours are found.
-    (Evaluating the density here as well was measured slower on an H100 than a separate pass: the
-    scan's loop is divergent and the extra registers cost occupancy.)
+    Launched with ``lanes`` threads per slot: thread ``lane * n + i`` scans its share of the 27 cells
+    around slot ``i`` (in the order ``dz, dy, dx``, lane 0 the first share; with two lanes, each
+    takes the slots of the own cell on its side of ``i``) and stores its finds in
+    rows ``[lane, lane + 1) * lane_capacity`` of the list; so the lanes need neither atomics nor a
+    prefix sum, and read one after the other the lists hold the neighbours in the order of one
+    thread's scan. ``neighbor_count[lane * n + i]`` receives the number the lane found, which exceeds
+    ``lane_capacity`` when its rows overflowed (only the first ``lane_capacity`` are stored). A lane
+    stops once ``stop_at`` neighbours are found (used with one lane). (Evaluating the density here as
+    well was measured slower on an H100 than a separate pass: the scan's loop is divergent and the
+    extra registers cost occupancy.)
     """
-    i = wp.tid()
+    tid = wp.tid()
     slot_count = sorted_world.shape[0]
+    lane = tid // slot_count
+    i = tid - lane * slot_count
     world = sorted_world[i]
     if world == _NO_WORLD:
-        neighbor_count[i] = 0
-        candidate_count[i] = 0
+        neighbor_count[tid] = 0
+        candidate_count[tid] = 0
         return
+    # this lane's share of the 27 cells in scan order, in half cells: [first, last) of 54. Only the
+    # particle's own cell (the 14th) can be split, at the particle's own slot: two lanes then each
+    # take 13 cells and half of the own cell (its slots are in fluid-index order, so no neighbour
+    # is listed twice or left out)
+    first = (54 * lane) // lanes
+    last = (54 * (lane + 1)) // lanes
+    row0 = lane * lane_capacity
     h2 = h * h
     xi4 = sorted_xm[i]
     xi = wp.vec3(xi4[0], xi4[1], xi4[2])
@@ -254,7 +268,10 @@ def build_fluid_neighbor_lists(
     for dz in range(-1, 2):
         for dy in range(-1, 2):
             for dx in range(-1, 2):
-                if count >= stop_at:
+                cell = (dz + 1) * 9 + (dy + 1) * 3 + dx + 1
+                lower = 2 * cell >= first and 2 * cell < last
+                upper = 2 * cell + 1 >= first and 2 * cell + 1 < last
+                if not (lower or upper) or count >= stop_at:
                     continue
                 # skip a cell whose box is farther than h (about a quarter of the 27, corners mostly)
                 gap = wp.vec3(
@@ -266,6 +283,10 @@ def build_fluid_neighbor_lists(
                     continue
                 key = fluid_cell_hash(ci[0] + dx, ci[1] + dy, ci[2] + dz, world, cell_bits)
                 start, end = fluid_cell_range(cell_offset, key)
+                if not upper:
+                    end = wp.min(end, i)
+                if not lower:
+                    start = wp.max(start, i + 1)
                 for j in range(start, end):
                     if count >= stop_at:
                         break
@@ -274,11 +295,58 @@ def build_fluid_neighbor_lists(
                     r = xi - wp.vec3(xj4[0], xj4[1], xj4[2])
                     if j == i or wp.dot(r, r) >= h2:
                         continue
-                    if count < capacity:
-                        neighbors[count * slot_count + i] = j
+                    if count < lane_capacity:
+                        neighbors[(row0 + count) * slot_count + i] = j
                     count += 1
-    neighbor_count[i] = count
-    candidate_count[i] = candidates
+    neighbor_count[tid] = count
+    candidate_count[tid] = candidates
+
+
+def scan_lanes(device, particle_count: int) -> int:
+    """Threads per particle for the full-neighbourhood scan of ``particle_count`` particles on ``device``.
+
+    Up to a few hundred thousand particles the scan's time is the length of one thread's loop (its
+    candidates one after the other), not the GPU's throughput: on an H100, 1,000 particles took
+    41 us a scan and 100,000 66 us. Splitting the 27 cells among threads shortens that loop where
+    one thread per particle leaves most of the GPU idle. Measured on an H100 (docs/performance.md),
+    ms per frame of the dam break with 1 / 2 / 3 lanes: 100k 2.60 / 2.52 / 2.48 (2 / 3 lanes with fast
+    math 2.35 / 2.31); 300k (1.1 waves of resident threads) 5.80 / 5.85 / 5.92; 500k 8.80 / 8.80;
+    1M 1 lane 17.5, 3 lanes 19.2 (17.8 with fast math). So: 3
+    lanes up to half a wave of resident threads, 2 up to one wave, else 1; one on the CPU, where
+    the threads run one after the other anyway.
+    """
+    if SCAN_LANES:
+        return SCAN_LANES
+    device = wp.get_device(device)
+    if not device.is_cuda:
+        return 1
+    wave = device.sm_count * _THREADS_PER_SM
+    if 2 * particle_count <= wave:
+        return 3
+    if particle_count <= wave:
+        return 2
+    return 1
+
+
+def neighbor_list_layout(
+    capacity: int, capped: bool, lanes: int | None = None, device=None, particle_count: int = 0
+) -> tuple[int, int]:
+    """Scan lanes and list rows per lane for ``capacity`` neighbours per particle (see :class:`FluidNeighborSearch`).
+
+    A lane's cells hold more than its share of the neighbours where the neighbourhood is one-sided
+    (a surface, a corner): with two lanes up to three quarters of them were measured in one lane,
+    with three (a layer of 9 cells each) over half. So with several lanes every lane has rows for
+    three quarters of ``capacity``: the lists take 1.5 (2 lanes) or 2.25 (3 lanes) times the memory
+    of one lane's, which :func:`scan_lanes` only picks for up to one wave of resident threads' worth
+    of particles.
+    """
+    if lanes is None:
+        lanes = 1 if capped else scan_lanes(device, particle_count)
+    if lanes not in (1, 2, 3) or (capped and lanes != 1):
+        raise ValueError(f"lanes={lanes!r} is invalid: expected 1, 2 or 3 (1 with a capped scan)")
+    if lanes == 1:
+        return 1, int(capacity)
+    return int(lanes), -(-3 * int(capacity) // 4)
 
 
 class FluidNeighborSearch:
@@ -289,9 +357,14 @@ class FluidNeighborSearch:
         particle_count: Number of particles of the model.
         world_count: Number of worlds (world indices of fluid particles are in ``[-1, world_count)``).
         smoothing_length: Kernel support radius ``h`` [m]; also the cell edge.
-        capacity: Neighbours stored per particle.
-        capped: If ``True`` the scan stops at ``capacity`` neighbours (bounded work); otherwise it
-            counts the whole neighbourhood and reports overflow through :attr:`neighbor_count`.
+        capacity: Neighbours stored per particle (with several lanes, more list rows:
+            :func:`neighbor_list_layout`).
+        capped: If ``True`` the scan stops at ``capacity`` neighbours (bounded work) and runs one
+            thread per particle, so the first ``capacity`` in scan order are kept; otherwise it
+            counts the whole neighbourhood with :func:`scan_lanes` threads per particle and reports
+            overflow through :attr:`neighbor_count`.
+        lanes: Threads per particle of the scan, 1 to 3, instead of the choice above (the lists
+            hold the same neighbours in the same order either way).
     """
 
     def __init__(
@@ -302,6 +375,7 @@ class FluidNeighborSearch:
         smoothing_length: float,
         capacity: int,
         capped: bool,
+        lanes: int | None = None,
     ):
         device = fluid_particle.device
         n = fluid_particle.shape[0]
@@ -309,7 +383,8 @@ class FluidNeighborSearch:
         self.slot_count = n
         self.smoothing_length = float(smoothing_length)
         self.inv_cell = 1.0 / self.smoothing_length
-        self.capacity = int(capacity)
+        self.lanes, self.lane_capacity = neighbor_list_layout(capacity, capped, lanes, device, n)
+        self.capacity = self.lanes * self.lane_capacity
         self.stop_at = self.capacity if capped else np.iinfo(np.int32).max
         # world -1 and worlds 0..world_count-1 each own a block of at least 2^6 entries
         world_bits = int(np.ceil(np.log2(world_count + 1)))
@@ -337,8 +412,9 @@ class FluidNeighborSearch:
             #: slot of every particle in this build, -1 for non-fluid and left-out particles
             self.slot_of_particle = wp.full(particle_count, -1, dtype=wp.int32)
             self.neighbors = wp.zeros(self.capacity * n, dtype=wp.int32)
-            self.neighbor_count = wp.zeros(n, dtype=wp.int32)
-            self.candidate_count = wp.zeros(n, dtype=wp.int32)
+            #: neighbours found for each slot by each lane of the scan, ``[lane * n + slot]``
+            self.neighbor_count = wp.zeros(self.lanes * n, dtype=wp.int32)
+            self.candidate_count = wp.zeros(self.lanes * n, dtype=wp.int32)
             #: static-wall planes of each slot, listed by the solver after a build (which clears the counts)
             self.wall_count = wp.zeros(n, dtype=wp.int32)
             self.wall_plane = wp.zeros(WALL_CONTACTS_PER_SLOT * n, dtype=wp.vec4)
@@ -349,6 +425,8 @@ class FluidNeighborSearch:
         self.slots.neighbors = self.neighbors
         self.slots.neighbor_count = self.neighbor_count
         self.slots.capacity = self.capacity
+        self.slots.lanes = self.lanes
+        self.slots.lane_capacity = self.lane_capacity
         self.slots.wall_count = self.wall_count
         self.slots.wall_plane = self.wall_plane
 
@@ -369,28 +447,7 @@ class FluidNeighborSearch:
         Afterwards :attr:`sorted_xm` holds the positions and masses at ``particle_q`` in slot order.
         """
         self.compute_keys(particle_q, particle_flags, particle_world, params, particle_q_start, particle_qd)
-        self.sort()
-        wp.launch(
-            gather_fluid_slots,
-            dim=self.slot_count,
-            inputs=[
-                self.keys,
-                self.values,
-                self.fluid_particle,
-                particle_q,
-                particle_mass,
-                particle_world,
-                self.mask,
-            ],
-            outputs=[
-                self.sorted_particle,
-                self.sorted_xm,
-                self.sorted_world,
-                self.slot_of_particle,
-                self.wall_count,
-            ],
-            device=particle_q.device,
-        )
+        self.sort(particle_q, particle_mass, particle_world)
         self.scan()
 
     def compute_keys(
@@ -422,12 +479,13 @@ class FluidNeighborSearch:
             device=particle_q.device,
         )
 
-    def sort(self) -> None:
-        """Counting-sort the fluid particles by their table entry (part of :meth:`build`; see the module notes).
+    def sort(self, particle_q: wp.array, particle_mass: wp.array, particle_world: wp.array) -> None:
+        """Counting-sort the fluid particles by their table entry and gather them (part of :meth:`build`).
 
         Reads :attr:`cell_keys` and the counts and ranks the key pass made; writes the sorted keys to
-        :attr:`keys` and the fluid index of each slot to :attr:`values`, and leaves the counts zero.
-        Entry ``mask + 1`` holds the left-out particles, which sort last.
+        :attr:`keys`, the fluid index of each slot to :attr:`values` and the slots' particles,
+        positions (at ``particle_q``), masses and worlds, and leaves the counts zero. Entry
+        ``mask + 1`` holds the left-out particles, which sort last (see the module notes).
         """
         n = self.slot_count
         device = self.keys.device
@@ -442,8 +500,24 @@ class FluidNeighborSearch:
         wp.launch(
             order_fluid_cells,
             dim=n,
-            inputs=[self.keys, self.scattered, self.cell_offset, self.mask],
-            outputs=[self.values],
+            inputs=[
+                self.keys,
+                self.scattered,
+                self.cell_offset,
+                self.fluid_particle,
+                particle_q,
+                particle_mass,
+                particle_world,
+                self.mask,
+            ],
+            outputs=[
+                self.values,
+                self.sorted_particle,
+                self.sorted_xm,
+                self.sorted_world,
+                self.slot_of_particle,
+                self.wall_count,
+            ],
             device=device,
         )
 
@@ -451,7 +525,7 @@ class FluidNeighborSearch:
         """Rebuild the neighbour lists of the slots as last sorted and gathered (part of :meth:`build`)."""
         wp.launch(
             build_fluid_neighbor_lists,
-            dim=self.slot_count,
+            dim=self.lanes * self.slot_count,
             inputs=[
                 self.sorted_xm,
                 self.sorted_world,
@@ -459,7 +533,8 @@ class FluidNeighborSearch:
                 self.smoothing_length,
                 self.inv_cell,
                 self.cell_bits,
-                self.capacity,
+                self.lanes,
+                self.lane_capacity,
                 self.stop_at,
             ],
             outputs=[self.neighbors, self.neighbor_count, self.candidate_count],

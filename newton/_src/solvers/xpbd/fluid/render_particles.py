@@ -17,16 +17,16 @@ Nothing here feeds back into the simulation.
 
 import warp as wp
 
-from .kernels import FluidParams, FluidSlots, fluid_neighbor, fluid_neighbor_count
+from .kernels import FluidParams, FluidSlots, fluid_neighbor, fluid_neighbor_layout
 
 # below this many neighbours a covariance says little about the shape: draw a sphere
 MIN_NEIGHBORS = 6
 
 
 @wp.func
-def weighted_neighbor(slots: FluidSlots, i: int, k: int, xi: wp.vec3, h2: float):
+def weighted_neighbor(slots: FluidSlots, i: int, k: int, layout: wp.vec3i, xi: wp.vec3, h2: float):
     """Position (xyz) and weight ``1 - (r/h)^3`` (w, 0 beyond h) of the ``k``-th neighbour of slot ``i``."""
-    xj4 = slots.xm[fluid_neighbor(slots, i, k)]
+    xj4 = slots.xm[fluid_neighbor(slots, i, k, layout)]
     xj = wp.vec3(xj4[0], xj4[1], xj4[2])
     r = xj - xi
     r2 = wp.dot(r, r)
@@ -76,11 +76,12 @@ def compute_fluid_render_particles(
     h2 = params[0].h2
     xi4 = slots.xm[i]
     xi = wp.vec3(xi4[0], xi4[1], xi4[2])
-    count = fluid_neighbor_count(slots, i)
+    layout = fluid_neighbor_layout(slots, i)
+    count = layout[2]
     w_sum = float(1.0)
     mean = xi
     for k in range(count):
-        n = weighted_neighbor(slots, i, k, xi, h2)
+        n = weighted_neighbor(slots, i, k, layout, xi, h2)
         w_sum += n[3]
         mean += wp.vec3(n[0], n[1], n[2]) * n[3]
     mean = mean / w_sum
@@ -90,7 +91,7 @@ def compute_fluid_render_particles(
     d = xi - mean
     cov = wp.outer(d, d)
     for k in range(count):
-        n = weighted_neighbor(slots, i, k, xi, h2)
+        n = weighted_neighbor(slots, i, k, layout, xi, h2)
         d = wp.vec3(n[0], n[1], n[2]) - mean
         cov += wp.outer(d, d) * n[3]
     cov = cov / w_sum

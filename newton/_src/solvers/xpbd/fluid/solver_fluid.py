@@ -50,7 +50,7 @@ from .kernels import (
     recover_nonfinite_fluid,
     store_fluid_warm_start,
 )
-from .neighbors import FluidNeighborSearch
+from .neighbors import FluidNeighborSearch, neighbor_list_layout
 from .render_particles import compute_fluid_render_particles, reset_render_particles
 
 # smoothing length h = DEFAULT_SMOOTHING_RATIO * rest distance unless given
@@ -161,15 +161,19 @@ class FluidConfig:
         setattr(self, name, v)
 
 
-def fluid_memory_bytes(fluid_count: int, particle_count: int, neighbor_capacity: int, diffuse: int = 0) -> int:
+def fluid_memory_bytes(
+    fluid_count: int, particle_count: int, neighbor_capacity: int, diffuse: int = 0, lanes: int = 1
+) -> int:
     """Device memory the fluid solve allocates [bytes] (render particles, allocated on first use, excluded).
 
-    Per fluid particle: the neighbour list (4 bytes a slot), the sort's keys, ranks, sorted keys,
-    scattered and ordered values (20 bytes), the cell table (at least two entries a particle: count and first slot,
-    16 bytes), the static-wall planes (16 bytes each, ``WALL_CONTACTS_PER_SLOT``) and about 84 bytes
-    of per-slot state; per model particle, two 4-byte maps; per diffuse particle, 28 bytes.
+    Per fluid particle: the neighbour list (4 bytes a row, ``neighbor_capacity`` rows), the sort's keys,
+    ranks, sorted keys, scattered and ordered values (20 bytes), the cell table (at least two entries a
+    particle: count and first slot, 16 bytes), the gathered slot (24 bytes), the neighbour and candidate
+    counts of each of the scan's ``lanes`` (8 bytes a lane), the static-wall planes (16 bytes each,
+    ``WALL_CONTACTS_PER_SLOT``) and about 84 bytes of per-slot state; per model particle, two 4-byte
+    maps; per diffuse particle, 28 bytes.
     """
-    per_fluid = 4 * neighbor_capacity + 20 + 16 + 32 + 84 + 16 * WALL_CONTACTS_PER_SLOT
+    per_fluid = 4 * neighbor_capacity + 20 + 16 + 24 + 8 * lanes + 84 + 16 * WALL_CONTACTS_PER_SLOT
     return int(fluid_count * per_fluid + 12 * particle_count + 28 * diffuse)
 
 
@@ -264,7 +268,12 @@ class FluidSolver:
             capacity, capped = config.fluid_max_neighbors, True
         else:
             capacity, capped = FULL_NEIGHBOR_FACTOR * self.rest_lattice_neighbors, False
-        need = fluid_memory_bytes(self.fluid_count, model.particle_count, capacity, config.max_diffuse_particles)
+        lanes, lane_capacity = neighbor_list_layout(
+            capacity, capped, device=self.device, particle_count=self.fluid_count
+        )
+        need = fluid_memory_bytes(
+            self.fluid_count, model.particle_count, lanes * lane_capacity, config.max_diffuse_particles, lanes
+        )
         free = free_memory(self.device)
         if free is not None and need > free:
             raise MemoryError(
@@ -806,7 +815,17 @@ def summarize_fluid_density(
     # the sums count neighbours at the reference mass; a particle's own density scales with its mass
     particle_density[pi] = rho * slots.xm[i][3] / params[0].reference_mass
     e = rho * params[0].inv_rest_density - 1.0
-    nb = float(slots.neighbor_count[i])
+    n = slots.particle.shape[0]
+    found = int(0)
+    candidates = int(0)
+    overflow = int(0)
+    for lane in range(slots.lanes):
+        c = slots.neighbor_count[lane * n + i]
+        found += c
+        candidates += candidate_count[lane * n + i]
+        if c > slots.lane_capacity:
+            overflow = 1
+    nb = float(found)
     wp.atomic_add(summary, 0, 1.0)
     wp.atomic_add(summary, 1, wp.abs(e))
     wp.atomic_max(summary, 2, wp.abs(e))
@@ -815,9 +834,9 @@ def summarize_fluid_density(
     wp.atomic_min(summary, 5, nb)
     wp.atomic_add(summary, 6, nb)
     wp.atomic_max(summary, 7, nb)
-    if slots.neighbor_count[i] > slots.capacity:
+    if overflow != 0:
         wp.atomic_add(summary, 8, 1.0)
-    wp.atomic_add(summary, 9, float(candidate_count[i]))
+    wp.atomic_add(summary, 9, float(candidates))
 
 
 def find_fluid_particles(model) -> np.ndarray:
