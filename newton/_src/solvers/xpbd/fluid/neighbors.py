@@ -32,6 +32,11 @@ The counting sort replaced Warp's radix sort: at 100k particles on an H100 the r
 19-bit keys took 52 us per substep (about 36 us of it fixed cost; ``benchmarks/radix_sort.py``),
 and the counting sort (three launches and a prefix sum) makes a frame of the 100k dam break
 0.15 ms faster, 2.80 against 2.95 ms (docs/performance.md).
+
+The CUDA code compiles with fast math (approximate division and square root; Warp ignores the
+option on the CPU): the fluid passes' time at up to a few hundred thousand particles is one
+thread's chain of dependent steps, and exact divisions and roots lengthen it (docs/performance.md,
+"The floor").
 """
 
 import numpy as np
@@ -39,6 +44,9 @@ import warp as wp
 
 from ....geometry import ParticleFlags
 from .kernels import MAX_DISPLACEMENT_OFF, WALL_CONTACTS_PER_SLOT, FluidParams, FluidSlots
+
+# approximate division and square root in CUDA code (no effect on the CPU; see the module notes)
+wp.set_module_options({"fast_math": True})
 
 # sentinel world index of a slot with no particle; real world indices are >= -1
 _NO_WORLD = -2
