@@ -138,15 +138,20 @@ def pass_breakdown(solver, collision, states, contacts, substeps: int, iteration
             # with the travel limit, as after prediction (states[1] stands in for the start of the substep)
             fluid.build_neighborhood(states[0].particle_q, states[1].particle_q, states[0].particle_qd)
 
+    # as in the step: the correction passes write the applied positions (states[1] stands in for the
+    # start of the substep), so the second iteration and the viscosity pass gather nothing
+    apply = (states[1].particle_q, dt, solver.model.particle_max_velocity, True)
+
     def density():
         fluid.contacts = contacts
         for _ in range(substeps):
             fluid._slots_hold_positions = True
             for _ in range(iterations):
-                fluid.solve_density(states[0].particle_q, deltas)
+                fluid.solve_density(states[0].particle_q, deltas, apply)
 
     def finish():
         for _ in range(substeps):
+            fluid._velocities_applied = True
             fluid.finish_step(states[0], dt)
 
     def collide():

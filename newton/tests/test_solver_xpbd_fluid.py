@@ -139,6 +139,52 @@ def add_walled_column(b):
         b.add_shape_box(-1, xform=wp.transform(wp.vec3(*c), wp.quat_identity()), hx=h[0], hy=h[1], hz=h[2], cfg=cfg)
 
 
+def test_applied_positions_match_a_gather(test, device):
+    # the correction pass writes each particle's position and velocity as SolverXPBD then applies
+    # them, so the next iteration and the viscosity pass gather nothing: the slots must hold what a
+    # gather would (bitwise on the CPU; on CUDA the fluid code's fast math rounds the velocity clamp
+    # differently), and a run with it must follow one without
+    def build(b):
+        add_walled_column(b)
+        add_block(b, (3, 3, 2), origin=(0.25, 0.25, 1.3), vel=(0.0, 0.0, -3.0))  # fast: the clamp acts
+
+    runs = []
+    for viscosity, applied in ((0.0, True), (0.0, False), (0.1, True), (0.1, False)):
+        model = make_model(device, build, gravity=-9.81)
+        model.soft_contact_mu = 0.0
+        model.particle_max_velocity = 2.0
+        sim = Sim(model, substeps=2, contacts=True, fluid_viscosity=viscosity, fluid_cohesion=0.5)
+        fluid = sim.solver._fluid
+        if not applied:
+            solve = fluid.solve_density
+            fluid.solve_density = lambda q, deltas, apply=None, solve=solve: solve(q, deltas, None)
+        sim.step(6)
+        test.assertEqual(fluid._positions_applied, applied)
+        test.assertEqual(fluid._velocities_applied, applied)
+        runs.append((sim.q(), sim.qd()))
+        if applied and viscosity == 0.0:
+            particle = fluid.slots.particle.numpy()
+            inside = particle >= 0
+            xm = fluid.slots.xm.numpy()[inside]
+            v = fluid.sorted_v.numpy()[inside]
+            q = sim.state_0.particle_q.numpy()[particle[inside]]
+            qd = sim.state_0.particle_qd.numpy()[particle[inside]]
+            test.assertGreater(np.abs(qd).max(), 1.9)  # the clamp acted
+            if wp.get_device(device).is_cpu:
+                np.testing.assert_array_equal(xm[:, :3], q)
+                np.testing.assert_array_equal(v, qd)
+            else:
+                np.testing.assert_allclose(xm[:, :3], q, rtol=0.0, atol=1.0e-6)
+                np.testing.assert_allclose(v, qd, rtol=0.0, atol=1.0e-4)
+    for with_it, without in (runs[0:2], runs[2:4]):
+        if wp.get_device(device).is_cpu:
+            np.testing.assert_array_equal(with_it[0], without[0])
+            np.testing.assert_array_equal(with_it[1], without[1])
+        else:
+            np.testing.assert_allclose(with_it[0], without[0], rtol=0.0, atol=1.0e-4)
+            np.testing.assert_allclose(with_it[1], without[1], rtol=0.0, atol=1.0e-2)
+
+
 def test_hydrostatic_column_stays_at_rest(test, device):
     model = make_model(device, add_walled_column, gravity=-9.81)
     model.soft_contact_mu = 0.0
@@ -541,34 +587,38 @@ def test_two_way_coupling_floats_and_sinks(test, device):
 
 
 def test_nonfinite_particles_recovered_and_counted(test, device):
-    model = make_model(device, lambda b: add_block(b, (4, 4, 4), origin=(0.0, 0.0, 1.0)), gravity=-9.81)
-    sim = Sim(model, substeps=1)
-    sim.step(3)
-    reference = Sim(
-        make_model(device, lambda b: add_block(b, (4, 4, 4), origin=(0.0, 0.0, 1.0)), gravity=-9.81), substeps=1
-    )
-    reference.step(3)
-    before = sim.q()
-    q = before.astype(np.float32)
-    q[5] = np.nan
-    qd = sim.qd().astype(np.float32)
-    qd[9] = np.inf
-    sim.state_0.particle_q.assign(q)
-    sim.state_0.particle_qd.assign(qd)
-    sim.step(1)
-    q_after = sim.q()
-    test.assertTrue(np.isfinite(q_after).all() and np.isfinite(sim.qd()).all())
-    test.assertEqual(sim.solver.fluid_nonfinite_count.numpy()[0], 2)
-    np.testing.assert_allclose(q_after[5], before[5], atol=1.0e-6)  # restored to its last finite position
-    np.testing.assert_array_equal(sim.qd()[5], 0.0)
-    test.assertEqual(sim.solver.fluid_diagnostics(sim.state_0)["nonfinite_recovered"], 2)
-    # everything else continued as if nothing happened
-    reference.step(1)
-    others = np.setdiff1d(np.arange(model.particle_count), [5, 9])
-    far = others[np.linalg.norm(before[others] - before[5], axis=1) > 2.0 * D]
-    far = far[np.linalg.norm(before[far] - before[9], axis=1) > 2.0 * D]
-    test.assertGreater(len(far), 0)
-    np.testing.assert_allclose(q_after[far], reference.q()[far], atol=1.0e-6)
+    # with vorticity confinement on, its pass (the substep's last) does the recovery
+    for vorticity in (0.0, 0.5):
+        model = make_model(device, lambda b: add_block(b, (4, 4, 4), origin=(0.0, 0.0, 1.0)), gravity=-9.81)
+        sim = Sim(model, substeps=1, fluid_vorticity=vorticity)
+        sim.step(3)
+        reference = Sim(
+            make_model(device, lambda b: add_block(b, (4, 4, 4), origin=(0.0, 0.0, 1.0)), gravity=-9.81),
+            substeps=1,
+            fluid_vorticity=vorticity,
+        )
+        reference.step(3)
+        before = sim.q()
+        q = before.astype(np.float32)
+        q[5] = np.nan
+        qd = sim.qd().astype(np.float32)
+        qd[9] = np.inf
+        sim.state_0.particle_q.assign(q)
+        sim.state_0.particle_qd.assign(qd)
+        sim.step(1)
+        q_after = sim.q()
+        test.assertTrue(np.isfinite(q_after).all() and np.isfinite(sim.qd()).all())
+        test.assertEqual(sim.solver.fluid_nonfinite_count.numpy()[0], 2)
+        np.testing.assert_allclose(q_after[5], before[5], atol=1.0e-6)  # restored to its last finite position
+        np.testing.assert_array_equal(sim.qd()[5], 0.0)
+        test.assertEqual(sim.solver.fluid_diagnostics(sim.state_0)["nonfinite_recovered"], 2)
+        # everything else continued as if nothing happened
+        reference.step(1)
+        others = np.setdiff1d(np.arange(model.particle_count), [5, 9])
+        far = others[np.linalg.norm(before[others] - before[5], axis=1) > 2.0 * D]
+        far = far[np.linalg.norm(before[far] - before[9], axis=1) > 2.0 * D]
+        test.assertGreater(len(far), 0)
+        np.testing.assert_allclose(q_after[far], reference.q()[far], atol=1.0e-6)
 
 
 def test_parameters_change_captured_graph(test, device):

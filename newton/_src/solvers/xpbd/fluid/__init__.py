@@ -210,7 +210,14 @@ def activate(xpbd_module) -> None:
             # the positions upstream applies the deltas to (it ping-pongs between the two states)
             current = state_in.requires_grad or self._particle_delta_counter == 0
             particle_q = state_out.particle_q if current else state_in.particle_q
-            self._fluid.solve_density(particle_q, particle_deltas)
+            # how upstream applies the deltas (apply_particle_deltas), so the fluid can write the
+            # result in its own order; velocities only where nothing changes them after the iterations
+            x_start = getattr(self, "particle_q_init", None)
+            apply = None
+            if x_start is not None and not state_in.requires_grad:
+                velocities = not getattr(self, "enable_restitution", True)
+                apply = (x_start, dt, model.particle_max_velocity, velocities)
+            self._fluid.solve_density(particle_q, particle_deltas, apply)
         return upstream_apply(self, model, state_in, state_out, particle_deltas, dt)
 
     @functools.wraps(upstream_step)

@@ -468,6 +468,38 @@ def relaxed_correction(dx: wp.vec3, p: FluidParams):
     return dx
 
 
+@wp.struct
+class ParticleApply:
+    """What ``SolverXPBD`` applies the iteration's deltas with (its ``apply_particle_deltas``).
+
+    With ``on`` set, the correction pass works out each fluid particle's position and velocity after
+    that application (same formula: ``x = x_pred + delta``, ``v = (x - x_start) / dt``, ``v`` bounded to
+    ``v_max`` and ``x`` moved back with it) and writes them in slot order, so the next iteration and
+    the viscosity pass need not gather them.
+    """
+
+    on: int
+    x_pred: wp.array[wp.vec3]  # positions the deltas are applied to [m]
+    x_start: wp.array[wp.vec3]  # positions at the start of the substep [m]
+    dt: float  # [s]
+    v_max: float  # [m/s]
+    xm: wp.array[wp.vec4]  # output: the applied positions [m] and masses [kg], in slot order
+    v: wp.array[wp.vec3]  # output: the applied velocities [m/s], in slot order
+
+
+@wp.func
+def applied_particle(apply: ParticleApply, pi: int, delta: wp.vec3):
+    """Position and velocity of particle ``pi`` once ``SolverXPBD`` applies ``delta`` (see :class:`ParticleApply`)."""
+    x0 = apply.x_start[pi]
+    x = apply.x_pred[pi] + delta
+    v = (x - x0) / apply.dt
+    speed = wp.length(v)
+    if speed > apply.v_max:
+        v *= apply.v_max / speed
+        x = x0 + v * apply.dt
+    return x, v
+
+
 @wp.kernel
 def apply_fluid_density_correction(
     params: wp.array[FluidParams],
@@ -476,6 +508,7 @@ def apply_fluid_density_correction(
     lambda_rho: wp.array[wp.vec2],
     particle_inv_mass: wp.array[float],
     wall_grad: wp.array[wp.vec3],
+    apply: ParticleApply,
     # outputs
     particle_deltas: wp.array[wp.vec3],
     slot_dx: wp.array[wp.vec3],
@@ -486,17 +519,22 @@ def apply_fluid_density_correction(
     Each pair takes the share of the cohesion :func:`cohesion_weight` gives it.
 
     The correction is also written to ``slot_dx`` (for density sub-iterations). ``wall_grad`` is the
-    walls' gradient of the density pass before it.
+    walls' gradient of the density pass before it. With ``apply.on``, the particle's position and
+    velocity after ``SolverXPBD`` applies the summed delta go to ``apply.xm`` and ``apply.v``.
     """
     i = wp.tid()
     pi = slots.particle[i]
     if pi < 0 or active[0] == 0:
         return
+    xi4 = slots.xm[i]
     if particle_inv_mass[pi] == 0.0:
         slot_dx[i] = wp.vec3(0.0)
+        if apply.on != 0:
+            x, v = applied_particle(apply, pi, particle_deltas[pi])
+            apply.xm[i] = wp.vec4(x[0], x[1], x[2], xi4[3])
+            apply.v[i] = v
         return
     p = params[0]
-    xi4 = slots.xm[i]
     lr_i = lambda_rho[i]
     lam_i = lr_i[0]
     rel_i = lr_i[1]
@@ -532,10 +570,15 @@ def apply_fluid_density_correction(
         if coh_len > coh_max:
             coh *= coh_max / coh_len
         dx += coh
-    particle_deltas[pi] = particle_deltas[pi] + dx
+    delta = particle_deltas[pi] + dx
+    particle_deltas[pi] = delta
     slot_dx[i] = dx
     if p.warm_start > 0.0:
         lambda_sum[i] = lambda_sum[i] + lam_i
+    if apply.on != 0:
+        x, v = applied_particle(apply, pi, delta)
+        apply.xm[i] = wp.vec4(x[0], x[1], x[2], xi4[3])
+        apply.v[i] = v
 
 
 @wp.kernel

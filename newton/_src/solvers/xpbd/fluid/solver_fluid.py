@@ -34,6 +34,7 @@ from .kernels import (
     WALL_CONTACTS_PER_SLOT,
     FluidParams,
     FluidSlots,
+    ParticleApply,
     advance_fluid_slots,
     apply_fluid_density_correction,
     apply_fluid_viscosity,
@@ -294,6 +295,9 @@ class FluidSolver:
             #: multiplier (x) and relative density rho / rho0 (y) of each slot, from the last density pass
             self.lambda_rho = wp.zeros(n, dtype=wp.vec2)
             self.sorted_v = wp.zeros(n, dtype=wp.vec3)
+            # the slots again, with a second position buffer: a correction pass that knows how
+            # SolverXPBD applies its deltas writes the applied positions there for the next pass
+            self.xm_applied = wp.zeros(n, dtype=wp.vec4)
             self.vorticity = wp.zeros(n, dtype=wp.vec3)
             self.slot_dx = wp.zeros(n, dtype=wp.vec3)
             # warm start: multipliers carried per particle between substeps, their slot-order copy and
@@ -326,6 +330,21 @@ class FluidSolver:
             #: density of every particle at the state of the last :meth:`diagnostics` call [kg/m^3] (0 for non-fluid)
             self.particle_density = wp.zeros(model.particle_count, dtype=float)
             self._summary = wp.zeros(_SUMMARY_SIZE, dtype=float)
+        other = FluidSlots()
+        for field in ("particle", "neighbors", "neighbor_count", "capacity", "lanes", "lane_capacity"):
+            setattr(other, field, getattr(self.search.slots, field))
+        other.wall_count = self.search.wall_count
+        other.wall_plane = self.search.wall_plane
+        other.xm = self.xm_applied
+        #: the slot views of the two position buffers; ``_current`` is the one holding the positions
+        self._slot_views = (self.search.slots, other)
+        self._apply_off = ParticleApply()
+        self._apply_off.on = 0
+        self._current = 0
+        # the current slots hold the particles' positions (and sorted_v their velocities) as SolverXPBD
+        # last applied them, so no gather is needed
+        self._positions_applied = False
+        self._velocities_applied = False
         self._slots_hold_positions = False
         self.diffuse = None
         if config.max_diffuse_particles > 0:
@@ -421,9 +440,24 @@ class FluidSolver:
             self._substep_active.fill_(1)
         # the build gathered these positions into slot order: the first iteration uses them as they are
         self._slots_hold_positions = True
+        self._current = 0
+        self._positions_applied = False
+        self._velocities_applied = False
 
-    def solve_density(self, particle_q: wp.array, particle_deltas: wp.array) -> None:
+    @property
+    def slots(self) -> FluidSlots:
+        """The slots with the current position buffer (see :meth:`solve_density`)."""
+        return self._slot_views[self._current]
+
+    def solve_density(self, particle_q: wp.array, particle_deltas: wp.array, apply: tuple | None = None) -> None:
         """The density constraint of one XPBD iteration: add its correction to ``particle_deltas``.
+
+        ``apply`` = ``(x_start, dt, v_max, velocities)`` says how ``SolverXPBD`` applies the deltas
+        after this call (:class:`~.kernels.ParticleApply`; ``x_start`` the substep's start positions).
+        With it, and one density pass per iteration without a tolerance, the correction pass also
+        writes every fluid particle's applied position in slot order (and, with ``velocities``, its
+        velocity: false where something changes the velocities after the iterations), so the next
+        iteration and the viscosity pass gather nothing: two launches less per substep.
 
         With ``fluid_max_iterations`` 1 this is one Jacobi pass (with a tolerance set at construction,
         skipped once the substep's mean compression has met it). Otherwise up to that many passes
@@ -435,23 +469,25 @@ class FluidSolver:
         synchronisation); on the CPU the loop reads its flag and stops. With ``fluid_warm_start``, the
         substep's first iteration first moves the fluid by the multipliers carried from the last one.
         """
-        s, m, n = self.search, self.model, self.fluid_count
+        m, n = self.model, self.fluid_count
         # with the tolerance on the XPBD iterations, a converged substep skips the rest of its passes
         active = self._substep_active if self.iteration_tolerance else self._always_active
         if self._slots_hold_positions:
             # the step's first iteration: the walls near each slot, from the step's contacts
             self._list_walls()
-        else:
+        elif not self._positions_applied:
             wp.launch(
                 gather_fluid_positions,
                 dim=n,
-                inputs=[s.slots, active, particle_q, m.particle_mass],
+                inputs=[self.slots, active, particle_q, m.particle_mass],
                 device=self.device,
             )
         if self._slots_hold_positions and self._warm_start_on():
             self._warm_start(particle_deltas, active)
         # after this iteration's correction, the gathered positions are out of date
         self._slots_hold_positions = False
+        self._positions_applied = False
+        self._velocities_applied = False
         if self.config.fluid_max_iterations == 1:
             self._evaluate_constraint(active, track_compression=self.iteration_tolerance)
             if self.iteration_tolerance:
@@ -462,7 +498,13 @@ class FluidSolver:
                     outputs=[self._compression_bins, active, self.subiterations_total],
                     device=self.device,
                 )
-            self._correct(particle_deltas, active)
+            # (a converged substep skips its corrections, which then write no applied positions)
+            predict = apply is not None and not self.iteration_tolerance
+            self._correct(particle_deltas, active, particle_q if predict else None, apply)
+            if predict:
+                self._current = 1 - self._current
+                self._positions_applied = True
+                self._velocities_applied = bool(apply[3])
             return
         wp.launch(
             begin_fluid_subiterations,
@@ -480,7 +522,7 @@ class FluidSolver:
                 self._density_subiteration(particle_deltas)
 
     def _density_subiteration(self, particle_deltas: wp.array) -> None:
-        s, n = self.search, self.fluid_count
+        n = self.fluid_count
         # (the density pass measures the walls where the last pass left the particles)
         self._evaluate_constraint(self._loop_active, track_compression=True)
         wp.launch(
@@ -497,7 +539,9 @@ class FluidSolver:
             device=self.device,
         )
         self._correct(particle_deltas, self._pass_corrects)
-        wp.launch(advance_fluid_slots, dim=n, inputs=[s.slots, self._pass_corrects, self.slot_dx], device=self.device)
+        wp.launch(
+            advance_fluid_slots, dim=n, inputs=[self.slots, self._pass_corrects, self.slot_dx], device=self.device
+        )
 
     def _warm_start_on(self) -> bool:
         # in a graph the passes are captured and check the parameter on the device (so it may change)
@@ -505,11 +549,11 @@ class FluidSolver:
 
     def _warm_start(self, particle_deltas: wp.array, active: wp.array) -> None:
         """Move the fluid by the multipliers carried from the last substep before its first evaluation."""
-        s, m, n = self.search, self.model, self.fluid_count
+        m, n = self.model, self.fluid_count
         wp.launch(
             gather_fluid_warm_start,
             dim=n,
-            inputs=[self.params, s.slots, self.particle_lambda],
+            inputs=[self.params, self.slots, self.particle_lambda],
             outputs=[self.warm_lambda, self.lambda_sum],
             device=self.device,
         )
@@ -518,7 +562,7 @@ class FluidSolver:
             dim=n,
             inputs=[
                 self.params,
-                s.slots,
+                self.slots,
                 active,
                 self.warm_lambda,
                 m.particle_inv_mass,
@@ -528,20 +572,32 @@ class FluidSolver:
             outputs=[particle_deltas, self.slot_dx],
             device=self.device,
         )
-        wp.launch(advance_fluid_slots, dim=n, inputs=[s.slots, active, self.slot_dx], device=self.device)
+        wp.launch(advance_fluid_slots, dim=n, inputs=[self.slots, active, self.slot_dx], device=self.device)
 
-    def _correct(self, particle_deltas: wp.array, active: wp.array) -> None:
+    def _correct(
+        self, particle_deltas: wp.array, active: wp.array, x_pred: wp.array | None = None, apply: tuple | None = None
+    ) -> None:
         m = self.model
+        applied = self._apply_off
+        if x_pred is not None:
+            # the applied positions go to the other position buffer (this pass reads the current one)
+            applied = ParticleApply()
+            applied.on = 1
+            applied.x_pred = x_pred
+            applied.x_start, applied.dt, applied.v_max = apply[0], float(apply[1]), float(apply[2])
+            applied.xm = self._slot_views[1 - self._current].xm
+            applied.v = self.sorted_v
         wp.launch(
             apply_fluid_density_correction,
             dim=self.fluid_count,
             inputs=[
                 self.params,
-                self.search.slots,
+                self.slots,
                 active,
                 self.lambda_rho,
                 m.particle_inv_mass,
                 self.wall_grad,
+                applied,
             ],
             outputs=[particle_deltas, self.slot_dx, self.lambda_sum],
             device=self.device,
@@ -571,11 +627,10 @@ class FluidSolver:
 
     def _evaluate_constraint(self, active: wp.array, track_compression: bool = False) -> None:
         """Density and multipliers at the positions gathered in ``slots.xm`` (while ``active[0]`` is set)."""
-        s = self.search
         wp.launch(
             compute_fluid_density_lambda,
             dim=self.fluid_count,
-            inputs=[self.params, s.slots, active, self.wall_table, self.wall_table_grad, int(track_compression)],
+            inputs=[self.params, self.slots, active, self.wall_table, self.wall_table_grad, int(track_compression)],
             outputs=[self.density, self.lambda_rho, self.wall_grad, self._compression_bins],
             device=self.device,
         )
@@ -670,28 +725,28 @@ class FluidSolver:
 
     def _velocity_pass(self, state_out) -> None:
         """Viscosity, and the vorticity estimate when confinement is on (one neighbour loop)."""
-        s, m, n = self.search, self.model, self.fluid_count
-        wp.launch(
-            gather_fluid_state,
-            dim=n,
-            inputs=[self.params, s.slots, state_out.particle_q, state_out.particle_qd, m.particle_mass, 1],
-            outputs=[self.sorted_v],
-            device=self.device,
-        )
+        m, n = self.model, self.fluid_count
+        if not self._velocities_applied:
+            wp.launch(
+                gather_fluid_state,
+                dim=n,
+                inputs=[self.params, self.slots, state_out.particle_q, state_out.particle_qd, m.particle_mass, 1],
+                outputs=[self.sorted_v],
+                device=self.device,
+            )
         wp.launch(
             apply_fluid_viscosity,
             dim=n,
-            inputs=[self.params, s.slots, self.sorted_v, self.density],
+            inputs=[self.params, self.slots, self.sorted_v, self.density],
             outputs=[state_out.particle_qd, self.vorticity],
             device=self.device,
         )
 
     def _vorticity_pass(self, state_out, dt: float) -> None:
-        s = self.search
         wp.launch(
             apply_vorticity_confinement,
             dim=self.fluid_count,
-            inputs=[self.params, s.slots, self.density, self.vorticity, dt],
+            inputs=[self.params, self.slots, self.density, self.vorticity, dt],
             outputs=[state_out.particle_qd],
             device=self.device,
         )
