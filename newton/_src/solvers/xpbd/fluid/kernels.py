@@ -324,7 +324,7 @@ def fluid_wall_share(
     poly6 density (over the lattice density) and its derivative against the distance from the
     particle centre to the wall plane. Without it a particle by a wall misses neighbours and packs
     closer than the rest distance before the constraint acts. The walls are the planes listed for
-    the slot from the step's contacts (:func:`list_fluid_wall_contacts`), added in the order of
+    the slot from the step's contacts (:func:`list_wall_contact`), added in the order of
     :func:`plane_after` (equal planes at once): the contacts arrive in any order on a GPU, and the
     sum of three or more floats depends on its order.
     """
@@ -360,8 +360,9 @@ def fluid_wall_share(
     return share
 
 
-@wp.kernel
-def list_fluid_wall_contacts(
+@wp.func
+def list_wall_contact(
+    k: int,
     contact_count: wp.array[int],
     contact_particle: wp.array[int],
     contact_shape: wp.array[int],
@@ -370,14 +371,13 @@ def list_fluid_wall_contacts(
     contact_max: int,
     shape_body: wp.array[int],
     slot_of_particle: wp.array[wp.int32],
-    # outputs
     slots: FluidSlots,
 ):
-    """List each fluid slot's contacts with static shapes (once per step, after the build cleared the counts).
+    """List particle-shape contact ``k`` as a wall of its particle's slot, if its shape is static.
 
-    Walls of moving bodies would need their reaction on the body: only static shapes lend density.
+    Once per step, after the build cleared the slots' counts. Walls of moving bodies would need
+    their reaction on the body: only static shapes lend density.
     """
-    k = wp.tid()
     if k >= wp.min(contact_count[0], contact_max):
         return
     slot = slot_of_particle[contact_particle[k]]
@@ -722,42 +722,96 @@ def apply_fluid_viscosity(
         vorticity[i] = omega
 
 
+@wp.func
+def recover_fluid_particle(
+    k: int,
+    pi: int,
+    particle_flags: wp.array[wp.int32],
+    rest_distance: float,
+    dt: float,
+    particle_q: wp.array[wp.vec3],
+    particle_qd: wp.array[wp.vec3],
+    last_finite_q: wp.array[wp.vec3],
+    nonfinite_count: wp.array[wp.int32],
+    fast_count: wp.array[wp.int32],
+):
+    """Restore fluid particle ``k`` (particle ``pi``) to its last finite position at rest if it is not finite.
+
+    Counts the recovered particles, and the particles that would travel more than one rest distance
+    in the next substep: past that a particle can cross a thin wall before its contact is found.
+    """
+    if (particle_flags[pi] & ParticleFlags.ACTIVE) == 0:
+        return
+    x = particle_q[pi]
+    v = particle_qd[pi]
+    if wp.isfinite(x) and wp.isfinite(v):
+        last_finite_q[k] = x
+        if wp.length(v) * dt > rest_distance:
+            wp.atomic_add(fast_count, 0, 1)
+    else:
+        particle_q[pi] = last_finite_q[k]
+        particle_qd[pi] = wp.vec3(0.0)
+        wp.atomic_add(nonfinite_count, 0, 1)
+
+
 @wp.kernel
-def apply_vorticity_confinement(
+def confine_vorticity_and_recover(
     params: wp.array[FluidParams],
     slots: FluidSlots,
     density: wp.array[float],
     vorticity: wp.array[wp.vec3],
+    slot_fluid: wp.array[wp.int32],
+    fluid_particle: wp.array[wp.int32],
+    particle_flags: wp.array[wp.int32],
     dt: float,
-    # outputs
+    # in/out
+    particle_q: wp.array[wp.vec3],
     particle_qd: wp.array[wp.vec3],
+    last_finite_q: wp.array[wp.vec3],
+    nonfinite_count: wp.array[wp.int32],
+    fast_count: wp.array[wp.int32],
 ):
-    """Vorticity confinement: ``v_i += dt * eps * (N x omega_i)`` with ``N`` the normalised gradient of ``|omega|``."""
+    """Vorticity confinement, then the non-finite recovery of the slot's particle (the substep's last pass).
+
+    Confinement: ``v_i += dt * eps * (N x omega_i)`` with ``N`` the normalised gradient of ``|omega|``.
+    Then :func:`recover_fluid_particle` for the particle of every slot, the left-out ones included
+    (``slot_fluid``: the fluid index of each slot), so the recovery costs no pass of its own.
+    """
     i = wp.tid()
     pi = slots.particle[i]
-    if pi < 0:
-        return
     p = params[0]
-    if p.vorticity <= 0.0:
-        return
-    xi4 = slots.xm[i]
-    xi = wp.vec3(xi4[0], xi4[1], xi4[2])
-    eta = wp.vec3(0.0)
-    layout = fluid_neighbor_layout(slots, i)
-    count = layout[2]
-    for k in range(count):
-        j = fluid_neighbor(slots, i, k, layout)
-        xj4 = slots.xm[j]
-        r = xi - wp.vec3(xj4[0], xj4[1], xj4[2])
-        r2 = wp.dot(r, r)
-        if r2 < p.h2:
-            vol_j = xj4[3] / wp.max(density[j], 1.0e-6)
-            eta += spiky_gradient(r, r2, pi, slots.particle, j, p) * (vol_j * wp.length(vorticity[j]))
-    # grad W points from j to i, so -eta points toward larger |omega|
-    eta_len = wp.length(eta)
-    if eta_len > 1.0e-9:
-        n = -eta / eta_len
-        particle_qd[pi] = particle_qd[pi] + wp.cross(n, vorticity[i]) * (p.vorticity * dt)
+    if pi >= 0 and p.vorticity > 0.0:
+        xi4 = slots.xm[i]
+        xi = wp.vec3(xi4[0], xi4[1], xi4[2])
+        eta = wp.vec3(0.0)
+        layout = fluid_neighbor_layout(slots, i)
+        count = layout[2]
+        for k in range(count):
+            j = fluid_neighbor(slots, i, k, layout)
+            xj4 = slots.xm[j]
+            r = xi - wp.vec3(xj4[0], xj4[1], xj4[2])
+            r2 = wp.dot(r, r)
+            if r2 < p.h2:
+                vol_j = xj4[3] / wp.max(density[j], 1.0e-6)
+                eta += spiky_gradient(r, r2, pi, slots.particle, j, p) * (vol_j * wp.length(vorticity[j]))
+        # grad W points from j to i, so -eta points toward larger |omega|
+        eta_len = wp.length(eta)
+        if eta_len > 1.0e-9:
+            n = -eta / eta_len
+            particle_qd[pi] = particle_qd[pi] + wp.cross(n, vorticity[i]) * (p.vorticity * dt)
+    f = slot_fluid[i]
+    recover_fluid_particle(
+        f,
+        fluid_particle[f],
+        particle_flags,
+        p.rest_distance,
+        dt,
+        particle_q,
+        particle_qd,
+        last_finite_q,
+        nonfinite_count,
+        fast_count,
+    )
 
 
 @wp.kernel
@@ -868,25 +922,20 @@ def recover_nonfinite_fluid(
     nonfinite_count: wp.array[wp.int32],
     fast_count: wp.array[wp.int32],
 ):
-    """Restore non-finite fluid particles to their last finite position at rest, and count them.
-
-    Also counts the particles that would travel more than one rest distance in the next substep:
-    past that a particle can cross a thin wall before its contact is found.
-    """
+    """:func:`recover_fluid_particle` for every fluid particle (where the substep ends without the vorticity pass)."""
     k = wp.tid()
-    pi = fluid_particle[k]
-    if (particle_flags[pi] & ParticleFlags.ACTIVE) == 0:
-        return
-    x = particle_q[pi]
-    v = particle_qd[pi]
-    if wp.isfinite(x) and wp.isfinite(v):
-        last_finite_q[k] = x
-        if wp.length(v) * dt > params[0].rest_distance:
-            wp.atomic_add(fast_count, 0, 1)
-    else:
-        particle_q[pi] = last_finite_q[k]
-        particle_qd[pi] = wp.vec3(0.0)
-        wp.atomic_add(nonfinite_count, 0, 1)
+    recover_fluid_particle(
+        k,
+        fluid_particle[k],
+        particle_flags,
+        params[0].rest_distance,
+        dt,
+        particle_q,
+        particle_qd,
+        last_finite_q,
+        nonfinite_count,
+        fast_count,
+    )
 
 
 @wp.kernel

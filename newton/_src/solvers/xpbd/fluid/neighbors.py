@@ -219,8 +219,9 @@ def order_fluid_cells(
     sorted_world[place] = particle_world[pi]
 
 
-@wp.kernel
-def build_fluid_neighbor_lists(
+@wp.func
+def scan_fluid_neighbors(
+    tid: int,
     sorted_xm: wp.array[wp.vec4],
     sorted_world: wp.array[wp.int32],
     cell_offset: wp.array[wp.int32],
@@ -235,9 +236,9 @@ def build_fluid_neighbor_lists(
     neighbor_count: wp.array[wp.int32],
     candidate_count: wp.array[wp.int32],
 ):
-    """List the slots within ``h`` of slot ``i`` (same world), stored transposed: ``neighbors[row * n + i]``.
+    """Thread ``tid``'s part of listing the slots within ``h`` of each slot (same world), stored transposed.
 
-    Launched with ``lanes`` threads per slot: thread ``lane * n + i`` scans its share of the 27 cells
+    With ``lanes`` threads per slot, thread ``tid = lane * n + i`` scans its share of the 27 cells
     around slot ``i`` (in the order ``dz, dy, dx``, lane 0 the first share; with two lanes, each
     takes the slots of the own cell on its side of ``i``) and stores its finds in
     rows ``[lane, lane + 1) * lane_capacity`` of the list; so the lanes need neither atomics nor a
@@ -248,7 +249,6 @@ def build_fluid_neighbor_lists(
     well was measured slower on an H100 than a separate pass: the scan's loop is divergent and the
     extra registers cost occupancy.)
     """
-    tid = wp.tid()
     slot_count = sorted_world.shape[0]
     lane = tid // slot_count
     i = tid - lane * slot_count
@@ -308,6 +308,40 @@ def build_fluid_neighbor_lists(
                     count += 1
     neighbor_count[tid] = count
     candidate_count[tid] = candidates
+
+
+@wp.kernel
+def build_fluid_neighbor_lists(
+    sorted_xm: wp.array[wp.vec4],
+    sorted_world: wp.array[wp.int32],
+    cell_offset: wp.array[wp.int32],
+    h: float,
+    inv_cell: float,
+    cell_bits: int,
+    lanes: int,
+    lane_capacity: int,
+    stop_at: int,
+    # outputs
+    neighbors: wp.array[wp.int32],
+    neighbor_count: wp.array[wp.int32],
+    candidate_count: wp.array[wp.int32],
+):
+    """:func:`scan_fluid_neighbors` for every slot and lane (launched with ``lanes`` threads per slot)."""
+    scan_fluid_neighbors(
+        wp.tid(),
+        sorted_xm,
+        sorted_world,
+        cell_offset,
+        h,
+        inv_cell,
+        cell_bits,
+        lanes,
+        lane_capacity,
+        stop_at,
+        neighbors,
+        neighbor_count,
+        candidate_count,
+    )
 
 
 def scan_lanes(device, particle_count: int) -> int:

@@ -39,19 +39,19 @@ from .kernels import (
     apply_fluid_density_correction,
     apply_fluid_viscosity,
     apply_fluid_warm_start,
-    apply_vorticity_confinement,
     begin_fluid_subiterations,
     compute_fluid_density_lambda,
+    confine_vorticity_and_recover,
     decide_fluid_density_converged,
     decide_fluid_subiteration,
     gather_fluid_positions,
     gather_fluid_state,
     gather_fluid_warm_start,
-    list_fluid_wall_contacts,
+    list_wall_contact,
     recover_nonfinite_fluid,
     store_fluid_warm_start,
 )
-from .neighbors import FluidNeighborSearch, neighbor_list_layout
+from .neighbors import FluidNeighborSearch, neighbor_list_layout, scan_fluid_neighbors
 from .render_particles import compute_fluid_render_particles, reset_render_particles
 
 # smoothing length h = DEFAULT_SMOOTHING_RATIO * rest distance unless given
@@ -430,12 +430,50 @@ class FluidSolver:
         """Sort the fluid at ``particle_q`` and list its neighbours.
 
         After prediction (``particle_q_start`` and ``particle_qd`` given) each fluid particle's travel
-        is first limited to ``fluid_max_displacement`` rest distances, in the same pass.
+        is first limited to ``fluid_max_displacement`` rest distances, in the same pass, and the
+        static walls of the step's contacts are listed for each slot by the same launch as the
+        neighbours (a build for diagnostics or rendering lists no walls: the contacts belong to a step).
         """
-        m = self.model
-        self.search.build(
-            particle_q, m.particle_mass, m.particle_flags, m.particle_world, self.params, particle_q_start, particle_qd
-        )
+        m, s = self.model, self.search
+        contacts = self.contacts
+        if particle_q_start is None or not self._has_walls or contacts is None:
+            s.build(
+                particle_q,
+                m.particle_mass,
+                m.particle_flags,
+                m.particle_world,
+                self.params,
+                particle_q_start,
+                particle_qd,
+            )
+        else:
+            s.compute_keys(particle_q, m.particle_flags, m.particle_world, self.params, particle_q_start, particle_qd)
+            s.sort(particle_q, m.particle_mass, m.particle_world)
+            wp.launch(
+                build_fluid_neighbor_lists_and_walls,
+                dim=max(s.lanes * s.slot_count, contacts.soft_contact_max),
+                inputs=[
+                    s.sorted_xm,
+                    s.sorted_world,
+                    s.cell_offset,
+                    s.smoothing_length,
+                    s.inv_cell,
+                    s.cell_bits,
+                    s.lanes,
+                    s.lane_capacity,
+                    s.stop_at,
+                    contacts.soft_contact_count,
+                    contacts.soft_contact_particle,
+                    contacts.soft_contact_shape,
+                    contacts.soft_contact_body_pos,
+                    contacts.soft_contact_normal,
+                    contacts.soft_contact_max,
+                    m.shape_body,
+                    s.slot_of_particle,
+                ],
+                outputs=[s.neighbors, s.neighbor_count, s.candidate_count, s.slots],
+                device=self.device,
+            )
         if self.iteration_tolerance:
             self._substep_active.fill_(1)
         # the build gathered these positions into slot order: the first iteration uses them as they are
@@ -472,10 +510,7 @@ class FluidSolver:
         m, n = self.model, self.fluid_count
         # with the tolerance on the XPBD iterations, a converged substep skips the rest of its passes
         active = self._substep_active if self.iteration_tolerance else self._always_active
-        if self._slots_hold_positions:
-            # the step's first iteration: the walls near each slot, from the step's contacts
-            self._list_walls()
-        elif not self._positions_applied:
+        if not self._slots_hold_positions and not self._positions_applied:
             wp.launch(
                 gather_fluid_positions,
                 dim=n,
@@ -603,28 +638,6 @@ class FluidSolver:
             device=self.device,
         )
 
-    def _list_walls(self) -> None:
-        """List each slot's static walls from the step's particle-shape contacts (after the build cleared them)."""
-        contacts = self.contacts
-        if not self._has_walls or contacts is None:
-            return
-        wp.launch(
-            list_fluid_wall_contacts,
-            dim=contacts.soft_contact_max,
-            inputs=[
-                contacts.soft_contact_count,
-                contacts.soft_contact_particle,
-                contacts.soft_contact_shape,
-                contacts.soft_contact_body_pos,
-                contacts.soft_contact_normal,
-                contacts.soft_contact_max,
-                self.model.shape_body,
-                self.search.slot_of_particle,
-            ],
-            outputs=[self.search.slots],
-            device=self.device,
-        )
-
     def _evaluate_constraint(self, active: wp.array, track_compression: bool = False) -> None:
         """Density and multipliers at the positions gathered in ``slots.xm`` (while ``active[0]`` is set)."""
         wp.launch(
@@ -642,6 +655,8 @@ class FluidSolver:
         Inside one they are captured and check the parameter on the device, so that switching them on
         or off later needs no re-capture: a pass that is off then costs its launch (about 2 us a
         kernel on an H100), less than a conditional node would (about 5 us, docs/performance.md).
+        The vorticity pass, the last, also recovers the non-finite particles (a pass of its own where
+        the vorticity pass is not launched).
         """
         c = self.config
         if self._warm_start_on():
@@ -661,19 +676,21 @@ class FluidSolver:
                 self._velocity_pass(state_out)
             if c.fluid_vorticity > 0.0:
                 self._vorticity_pass(state_out, dt)
-        wp.launch(
-            recover_nonfinite_fluid,
-            dim=self.fluid_count,
-            inputs=[self.params, self.fluid_particle, self.model.particle_flags, dt],
-            outputs=[
-                state_out.particle_q,
-                state_out.particle_qd,
-                self.last_finite_q,
-                self.nonfinite_count,
-                self.fast_count,
-            ],
-            device=self.device,
-        )
+            else:
+                # (the vorticity pass recovers the non-finite particles where it runs)
+                wp.launch(
+                    recover_nonfinite_fluid,
+                    dim=self.fluid_count,
+                    inputs=[self.params, self.fluid_particle, self.model.particle_flags, dt],
+                    outputs=[
+                        state_out.particle_q,
+                        state_out.particle_qd,
+                        self.last_finite_q,
+                        self.nonfinite_count,
+                        self.fast_count,
+                    ],
+                    device=self.device,
+                )
         if self.diffuse is not None:
             self._diffuse_pass(state_out, dt)
 
@@ -743,11 +760,27 @@ class FluidSolver:
         )
 
     def _vorticity_pass(self, state_out, dt: float) -> None:
+        """Vorticity confinement (while on) and the non-finite recovery, in one pass."""
         wp.launch(
-            apply_vorticity_confinement,
+            confine_vorticity_and_recover,
             dim=self.fluid_count,
-            inputs=[self.params, self.slots, self.density, self.vorticity, dt],
-            outputs=[state_out.particle_qd],
+            inputs=[
+                self.params,
+                self.slots,
+                self.density,
+                self.vorticity,
+                self.search.values,
+                self.fluid_particle,
+                self.model.particle_flags,
+                dt,
+            ],
+            outputs=[
+                state_out.particle_q,
+                state_out.particle_qd,
+                self.last_finite_q,
+                self.nonfinite_count,
+                self.fast_count,
+            ],
             device=self.device,
         )
 
@@ -844,6 +877,68 @@ class FluidSolver:
             "fast_particle_substeps": self._report_fast_particles(),
             "density_subiterations": int(self.subiterations_total.numpy()[0]),
         }
+
+
+@wp.kernel
+def build_fluid_neighbor_lists_and_walls(
+    sorted_xm: wp.array[wp.vec4],
+    sorted_world: wp.array[wp.int32],
+    cell_offset: wp.array[wp.int32],
+    h: float,
+    inv_cell: float,
+    cell_bits: int,
+    lanes: int,
+    lane_capacity: int,
+    stop_at: int,
+    contact_count: wp.array[int],
+    contact_particle: wp.array[int],
+    contact_shape: wp.array[int],
+    contact_point: wp.array[wp.vec3],
+    contact_normal: wp.array[wp.vec3],
+    contact_max: int,
+    shape_body: wp.array[int],
+    slot_of_particle: wp.array[wp.int32],
+    # outputs
+    neighbors: wp.array[wp.int32],
+    neighbor_count: wp.array[wp.int32],
+    candidate_count: wp.array[wp.int32],
+    slots: FluidSlots,
+):
+    """The neighbour scan of every slot and lane, and the static walls of every particle-shape contact.
+
+    Two independent jobs in one launch (thread ``t`` does the scan's part ``t`` and lists contact
+    ``t``): a launch costs more than either job's threads at the sizes where the frame's time is
+    latency (docs/performance.md, "The floor").
+    """
+    tid = wp.tid()
+    if tid < lanes * sorted_world.shape[0]:
+        scan_fluid_neighbors(
+            tid,
+            sorted_xm,
+            sorted_world,
+            cell_offset,
+            h,
+            inv_cell,
+            cell_bits,
+            lanes,
+            lane_capacity,
+            stop_at,
+            neighbors,
+            neighbor_count,
+            candidate_count,
+        )
+    list_wall_contact(
+        tid,
+        contact_count,
+        contact_particle,
+        contact_shape,
+        contact_point,
+        contact_normal,
+        contact_max,
+        shape_body,
+        slot_of_particle,
+        slots,
+    )
 
 
 # summary slots: count, sum|e|, max|e|, sum compression, max compression, nbr min, nbr sum, nbr max,
