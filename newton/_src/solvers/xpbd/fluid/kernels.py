@@ -6,9 +6,10 @@
 All per-particle passes run over the fluid particles in *sorted slot* order (see
 :mod:`.neighbors`): slot ``i`` holds particle ``slots.particle[i]`` (``-1`` for a slot
 whose particle is inactive or non-finite), its neighbours are slots too, and the
-current positions and masses of all slots are gathered once per pass into
-``slots.xm`` (``xyz`` = position [m], ``w`` = mass [kg]) so that neighbour reads are
-coherent. :class:`FluidSlots` bundles these arrays.
+current positions and masses of all slots are held in slot order in ``slots.xm``
+(``xyz`` = position [m], ``w`` = mass [kg]) so that neighbour reads are coherent:
+gathered by the build, or written by the correction pass of the iteration before
+(:class:`ParticleApply`). :class:`FluidSlots` bundles these arrays.
 
 Scalar parameters are read from a one-element :class:`FluidParams` array, not passed
 by value, so that changing them between steps also changes a captured CUDA graph.

@@ -519,7 +519,7 @@ class FluidSolver:
             )
         if self._slots_hold_positions and self._warm_start_on():
             self._warm_start(particle_deltas, active)
-        # after this iteration's correction, the gathered positions are out of date
+        # after this iteration's correction, the slots' positions are out of date (unless it writes the applied ones)
         self._slots_hold_positions = False
         self._positions_applied = False
         self._velocities_applied = False
@@ -698,7 +698,7 @@ class FluidSolver:
         """Let the fluid emit diffuse particles, then advect them all (new ones leave shapes at once)."""
         s, m, b = self.search, self.model, self.diffuse
         body_q = state_out.body_q if state_out.body_q is not None else self._no_bodies
-        # the step's result in slot order (the viscosity pass gathers the same, before it acts)
+        # the step's result in slot order (after the viscosity and vorticity passes changed the velocities)
         wp.launch(
             gather_fluid_state,
             dim=self.fluid_count,
