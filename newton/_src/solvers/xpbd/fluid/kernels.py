@@ -361,33 +361,35 @@ def fluid_wall_share(
     return share
 
 
+@wp.struct
+class FluidWallContacts:
+    """The particle-shape contacts a neighbour build lists as static walls (``contact_max`` 0: none)."""
+
+    count: wp.array[int]  # contacts found (one element)
+    particle: wp.array[int]
+    shape: wp.array[int]
+    point: wp.array[wp.vec3]  # contact point on the shape, in its body's frame (static: world) [m]
+    normal: wp.array[wp.vec3]
+    contact_max: int
+    shape_body: wp.array[int]  # body of each shape, -1 for a static one
+
+
 @wp.func
-def list_wall_contact(
-    k: int,
-    contact_count: wp.array[int],
-    contact_particle: wp.array[int],
-    contact_shape: wp.array[int],
-    contact_point: wp.array[wp.vec3],
-    contact_normal: wp.array[wp.vec3],
-    contact_max: int,
-    shape_body: wp.array[int],
-    slot_of_particle: wp.array[wp.int32],
-    slots: FluidSlots,
-):
+def list_wall_contact(k: int, walls: FluidWallContacts, slot_of_particle: wp.array[wp.int32], slots: FluidSlots):
     """List particle-shape contact ``k`` as a wall of its particle's slot, if its shape is static.
 
     Once per step, after the build cleared the slots' counts. Walls of moving bodies would need
     their reaction on the body: only static shapes lend density.
     """
-    if k >= wp.min(contact_count[0], contact_max):
+    if k >= wp.min(walls.count[0], walls.contact_max):
         return
-    slot = slot_of_particle[contact_particle[k]]
-    if slot < 0 or shape_body[contact_shape[k]] >= 0:
+    slot = slot_of_particle[walls.particle[k]]
+    if slot < 0 or walls.shape_body[walls.shape[k]] >= 0:
         return
     t = wp.atomic_add(slots.wall_count, slot, 1)
     if t < WALL_CONTACTS_PER_SLOT:
-        normal = contact_normal[k]
-        plane = wp.vec4(normal[0], normal[1], normal[2], wp.dot(normal, contact_point[k]))
+        normal = walls.normal[k]
+        plane = wp.vec4(normal[0], normal[1], normal[2], wp.dot(normal, walls.point[k]))
         slots.wall_plane[t * slots.particle.shape[0] + slot] = plane
 
 

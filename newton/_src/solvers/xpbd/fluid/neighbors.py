@@ -43,7 +43,14 @@ import numpy as np
 import warp as wp
 
 from ....geometry import ParticleFlags
-from .kernels import MAX_DISPLACEMENT_OFF, WALL_CONTACTS_PER_SLOT, FluidParams, FluidSlots
+from .kernels import (
+    MAX_DISPLACEMENT_OFF,
+    WALL_CONTACTS_PER_SLOT,
+    FluidParams,
+    FluidSlots,
+    FluidWallContacts,
+    list_wall_contact,
+)
 
 # approximate division and square root in CUDA code (no effect on the CPU; see the module notes)
 wp.set_module_options({"fast_math": True})
@@ -219,9 +226,8 @@ def order_fluid_cells(
     sorted_world[place] = particle_world[pi]
 
 
-@wp.func
-def scan_fluid_neighbors(
-    tid: int,
+@wp.kernel
+def build_fluid_neighbor_lists(
     sorted_xm: wp.array[wp.vec4],
     sorted_world: wp.array[wp.int32],
     cell_offset: wp.array[wp.int32],
@@ -231,12 +237,15 @@ def scan_fluid_neighbors(
     lanes: int,
     lane_capacity: int,
     stop_at: int,
+    walls: FluidWallContacts,
+    slot_of_particle: wp.array[wp.int32],
     # outputs
     neighbors: wp.array[wp.int32],
     neighbor_count: wp.array[wp.int32],
     candidate_count: wp.array[wp.int32],
+    slots: FluidSlots,
 ):
-    """Thread ``tid``'s part of listing the slots within ``h`` of each slot (same world), stored transposed.
+    """List the slots within ``h`` of each slot (same world), stored transposed, and the walls of ``walls``.
 
     With ``lanes`` threads per slot, thread ``tid = lane * n + i`` scans its share of the 27 cells
     around slot ``i`` (in the order ``dz, dy, dx``, lane 0 the first share; with two lanes, each
@@ -248,8 +257,17 @@ def scan_fluid_neighbors(
     stops once ``stop_at`` neighbours are found (used with one lane). (Evaluating the density here as
     well was measured slower on an H100 than a separate pass: the scan's loop is divergent and the
     extra registers cost occupancy.)
+
+    Thread ``t`` also lists contact ``t`` of ``walls`` as a static wall of its particle's slot
+    (:func:`~.kernels.list_wall_contact`): a launch of its own would cost more than these threads at
+    the sizes where a frame's time is latency (docs/performance.md, "The floor"). Launched with
+    ``max(lanes * n, walls.contact_max)`` threads.
     """
+    tid = wp.tid()
+    list_wall_contact(tid, walls, slot_of_particle, slots)
     slot_count = sorted_world.shape[0]
+    if tid >= lanes * slot_count:
+        return
     lane = tid // slot_count
     i = tid - lane * slot_count
     world = sorted_world[i]
@@ -308,40 +326,6 @@ def scan_fluid_neighbors(
                     count += 1
     neighbor_count[tid] = count
     candidate_count[tid] = candidates
-
-
-@wp.kernel
-def build_fluid_neighbor_lists(
-    sorted_xm: wp.array[wp.vec4],
-    sorted_world: wp.array[wp.int32],
-    cell_offset: wp.array[wp.int32],
-    h: float,
-    inv_cell: float,
-    cell_bits: int,
-    lanes: int,
-    lane_capacity: int,
-    stop_at: int,
-    # outputs
-    neighbors: wp.array[wp.int32],
-    neighbor_count: wp.array[wp.int32],
-    candidate_count: wp.array[wp.int32],
-):
-    """:func:`scan_fluid_neighbors` for every slot and lane (launched with ``lanes`` threads per slot)."""
-    scan_fluid_neighbors(
-        wp.tid(),
-        sorted_xm,
-        sorted_world,
-        cell_offset,
-        h,
-        inv_cell,
-        cell_bits,
-        lanes,
-        lane_capacity,
-        stop_at,
-        neighbors,
-        neighbor_count,
-        candidate_count,
-    )
 
 
 def scan_lanes(device, particle_count: int) -> int:
@@ -471,6 +455,10 @@ class FluidNeighborSearch:
         self.slots.lane_capacity = self.lane_capacity
         self.slots.wall_count = self.wall_count
         self.slots.wall_plane = self.wall_plane
+        #: no contacts: a build that lists no walls
+        self.no_walls = FluidWallContacts()
+        self.no_walls.count = wp.zeros(1, dtype=int, device=device)
+        self.no_walls.contact_max = 0
 
     def build(
         self,
@@ -481,16 +469,19 @@ class FluidNeighborSearch:
         params: wp.array,
         particle_q_start: wp.array | None = None,
         particle_qd: wp.array | None = None,
+        walls=None,
     ):
         """Sort the fluid particles at ``particle_q`` and rebuild all neighbour lists (no allocation, no sync).
 
         With ``particle_q_start`` (and ``particle_qd``), each fluid particle's travel from there is first
         limited to ``params[0].max_displacement`` in place (see :func:`compute_fluid_cell_keys`).
         Afterwards :attr:`sorted_xm` holds the positions and masses at ``particle_q`` in slot order.
+        With ``walls`` (:class:`~.kernels.FluidWallContacts`), the slots' static walls are listed from those
+        contacts in the same launch as the neighbours (else the slots have none).
         """
         self.compute_keys(particle_q, particle_flags, particle_world, params, particle_q_start, particle_qd)
         self.sort(particle_q, particle_mass, particle_world)
-        self.scan()
+        self.scan(walls)
 
     def compute_keys(
         self,
@@ -563,11 +554,13 @@ class FluidNeighborSearch:
             device=device,
         )
 
-    def scan(self) -> None:
-        """Rebuild the neighbour lists of the slots as last sorted and gathered (part of :meth:`build`)."""
+    def scan(self, walls=None) -> None:
+        """Rebuild the slots' neighbour lists as last sorted and gathered, and list their walls (see :meth:`build`)."""
+        if walls is None:
+            walls = self.no_walls
         wp.launch(
             build_fluid_neighbor_lists,
-            dim=self.lanes * self.slot_count,
+            dim=max(self.lanes * self.slot_count, walls.contact_max),
             inputs=[
                 self.sorted_xm,
                 self.sorted_world,
@@ -578,7 +571,9 @@ class FluidNeighborSearch:
                 self.lanes,
                 self.lane_capacity,
                 self.stop_at,
+                walls,
+                self.slot_of_particle,
             ],
-            outputs=[self.neighbors, self.neighbor_count, self.candidate_count],
+            outputs=[self.neighbors, self.neighbor_count, self.candidate_count, self.slots],
             device=self.sorted_xm.device,
         )

@@ -34,6 +34,7 @@ from .kernels import (
     WALL_CONTACTS_PER_SLOT,
     FluidParams,
     FluidSlots,
+    FluidWallContacts,
     ParticleApply,
     advance_fluid_slots,
     apply_fluid_density_correction,
@@ -47,11 +48,10 @@ from .kernels import (
     gather_fluid_positions,
     gather_fluid_state,
     gather_fluid_warm_start,
-    list_wall_contact,
     recover_nonfinite_fluid,
     store_fluid_warm_start,
 )
-from .neighbors import FluidNeighborSearch, neighbor_list_layout, scan_fluid_neighbors
+from .neighbors import FluidNeighborSearch, neighbor_list_layout
 from .render_particles import compute_fluid_render_particles, reset_render_particles
 
 # smoothing length h = DEFAULT_SMOOTHING_RATIO * rest distance unless given
@@ -434,46 +434,27 @@ class FluidSolver:
         static walls of the step's contacts are listed for each slot by the same launch as the
         neighbours (a build for diagnostics or rendering lists no walls: the contacts belong to a step).
         """
-        m, s = self.model, self.search
-        contacts = self.contacts
-        if particle_q_start is None or not self._has_walls or contacts is None:
-            s.build(
-                particle_q,
-                m.particle_mass,
-                m.particle_flags,
-                m.particle_world,
-                self.params,
-                particle_q_start,
-                particle_qd,
-            )
-        else:
-            s.compute_keys(particle_q, m.particle_flags, m.particle_world, self.params, particle_q_start, particle_qd)
-            s.sort(particle_q, m.particle_mass, m.particle_world)
-            wp.launch(
-                build_fluid_neighbor_lists_and_walls,
-                dim=max(s.lanes * s.slot_count, contacts.soft_contact_max),
-                inputs=[
-                    s.sorted_xm,
-                    s.sorted_world,
-                    s.cell_offset,
-                    s.smoothing_length,
-                    s.inv_cell,
-                    s.cell_bits,
-                    s.lanes,
-                    s.lane_capacity,
-                    s.stop_at,
-                    contacts.soft_contact_count,
-                    contacts.soft_contact_particle,
-                    contacts.soft_contact_shape,
-                    contacts.soft_contact_body_pos,
-                    contacts.soft_contact_normal,
-                    contacts.soft_contact_max,
-                    m.shape_body,
-                    s.slot_of_particle,
-                ],
-                outputs=[s.neighbors, s.neighbor_count, s.candidate_count, s.slots],
-                device=self.device,
-            )
+        m, contacts = self.model, self.contacts
+        walls = None
+        if particle_q_start is not None and self._has_walls and contacts is not None:
+            walls = FluidWallContacts()
+            walls.count = contacts.soft_contact_count
+            walls.particle = contacts.soft_contact_particle
+            walls.shape = contacts.soft_contact_shape
+            walls.point = contacts.soft_contact_body_pos
+            walls.normal = contacts.soft_contact_normal
+            walls.contact_max = contacts.soft_contact_max
+            walls.shape_body = m.shape_body
+        self.search.build(
+            particle_q,
+            m.particle_mass,
+            m.particle_flags,
+            m.particle_world,
+            self.params,
+            particle_q_start,
+            particle_qd,
+            walls,
+        )
         if self.iteration_tolerance:
             self._substep_active.fill_(1)
         # the build gathered these positions into slot order: the first iteration uses them as they are
@@ -877,68 +858,6 @@ class FluidSolver:
             "fast_particle_substeps": self._report_fast_particles(),
             "density_subiterations": int(self.subiterations_total.numpy()[0]),
         }
-
-
-@wp.kernel
-def build_fluid_neighbor_lists_and_walls(
-    sorted_xm: wp.array[wp.vec4],
-    sorted_world: wp.array[wp.int32],
-    cell_offset: wp.array[wp.int32],
-    h: float,
-    inv_cell: float,
-    cell_bits: int,
-    lanes: int,
-    lane_capacity: int,
-    stop_at: int,
-    contact_count: wp.array[int],
-    contact_particle: wp.array[int],
-    contact_shape: wp.array[int],
-    contact_point: wp.array[wp.vec3],
-    contact_normal: wp.array[wp.vec3],
-    contact_max: int,
-    shape_body: wp.array[int],
-    slot_of_particle: wp.array[wp.int32],
-    # outputs
-    neighbors: wp.array[wp.int32],
-    neighbor_count: wp.array[wp.int32],
-    candidate_count: wp.array[wp.int32],
-    slots: FluidSlots,
-):
-    """The neighbour scan of every slot and lane, and the static walls of every particle-shape contact.
-
-    Two independent jobs in one launch (thread ``t`` does the scan's part ``t`` and lists contact
-    ``t``): a launch costs more than either job's threads at the sizes where the frame's time is
-    latency (docs/performance.md, "The floor").
-    """
-    tid = wp.tid()
-    if tid < lanes * sorted_world.shape[0]:
-        scan_fluid_neighbors(
-            tid,
-            sorted_xm,
-            sorted_world,
-            cell_offset,
-            h,
-            inv_cell,
-            cell_bits,
-            lanes,
-            lane_capacity,
-            stop_at,
-            neighbors,
-            neighbor_count,
-            candidate_count,
-        )
-    list_wall_contact(
-        tid,
-        contact_count,
-        contact_particle,
-        contact_shape,
-        contact_point,
-        contact_normal,
-        contact_max,
-        shape_body,
-        slot_of_particle,
-        slots,
-    )
 
 
 # summary slots: count, sum|e|, max|e|, sum compression, max compression, nbr min, nbr sum, nbr max,
