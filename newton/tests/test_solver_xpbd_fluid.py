@@ -701,6 +701,20 @@ def test_density_subiterations_and_tolerance(test, device):
     test.assertLess(tolerance["mean_compression"], 0.02)
 
 
+def test_density_subpasses_match_xpbd_iterations(test, device):
+    # without contacts an XPBD iteration applies the density pass's correction and nothing else, so
+    # n passes within one iteration, each reading the positions the last one wrote (the two position
+    # buffers in turn), must move the fluid as n iterations of one pass do; an odd and an even count
+    for n in (3, 4):
+        runs = []
+        for kwargs in ({"iterations": n}, {"iterations": 1, "fluid_max_iterations": n}):
+            sim = Sim(compressed_block(device), substeps=2, **kwargs)
+            sim.step(1)
+            runs.append(sim.q())
+        test.assertGreater(np.abs(runs[0] - compressed_block(device).particle_q.numpy()).max(), 0.05 * D)
+        np.testing.assert_allclose(runs[1], runs[0], atol=1.0e-5 * D)
+
+
 def test_density_subiterations_in_captured_graph(test, device):
     kwargs = {"fluid_max_iterations": 4, "fluid_density_tolerance": 0.01}
     eager = Sim(compressed_block(device), **kwargs)

@@ -35,7 +35,13 @@ wp.set_module_options({"fast_math": True})
 # |r| below this fraction of h counts as coincident: the direction r/|r| is not usable there.
 COINCIDENT_FRACTION = 1.0e-5
 # bins of the compression sum of density sub-iterations: spreads the atomics over several addresses
-COMPRESSION_BINS = 64
+COMPRESSION_BINS = wp.constant(64)
+# the bins' compression sums, then their particle counts
+COMPRESSION_SUMS = wp.constant(128)
+# ParticleApply.on: the correction pass writes the position SolverXPBD will apply, or the position
+# moved by the pass's correction (density sub-passes)
+APPLY_AS_XPBD = wp.constant(1)
+APPLY_ADVANCE = wp.constant(2)
 
 # FluidParams.max_displacement at and above this means no limit
 MAX_DISPLACEMENT_OFF = 1.0e30
@@ -473,12 +479,14 @@ def relaxed_correction(dx: wp.vec3, p: FluidParams):
 
 @wp.struct
 class ParticleApply:
-    """What ``SolverXPBD`` applies the iteration's deltas with (its ``apply_particle_deltas``).
+    """Where the correction pass writes each fluid particle's corrected position (besides its delta).
 
-    With ``on`` set, the correction pass works out each fluid particle's position and velocity after
-    that application (same formula: ``x = x_pred + delta``, ``v = (x - x_start) / dt``, ``v`` bounded to
-    ``v_max`` and ``x`` moved back with it) and writes them in slot order, so the next iteration and
-    the viscosity pass need not gather them.
+    ``on`` = 1 (``APPLY_AS_XPBD``): the position and velocity after ``SolverXPBD`` applies the iteration's
+    deltas with its ``apply_particle_deltas`` (same formula: ``x = x_pred + delta``,
+    ``v = (x - x_start) / dt``, ``v`` bounded to ``v_max`` and ``x`` moved back with it), in slot
+    order, so the next iteration and the viscosity pass need not gather them. ``on`` = 2
+    (``APPLY_ADVANCE``): the slot's position moved by this pass's correction, for the next density
+    sub-pass (only ``xm`` is used). 0: nothing.
     """
 
     on: int
@@ -522,8 +530,8 @@ def apply_fluid_density_correction(
     Each pair takes the share of the cohesion :func:`cohesion_weight` gives it.
 
     The correction is also written to ``slot_dx`` (for density sub-iterations). ``wall_grad`` is the
-    walls' gradient of the density pass before it. With ``apply.on``, the particle's position and
-    velocity after ``SolverXPBD`` applies the summed delta go to ``apply.xm`` and ``apply.v``.
+    walls' gradient of the density pass before it. With ``apply.on``, the corrected position goes to
+    ``apply.xm`` (see :class:`ParticleApply`).
     """
     i = wp.tid()
     pi = slots.particle[i]
@@ -532,10 +540,12 @@ def apply_fluid_density_correction(
     xi4 = slots.xm[i]
     if particle_inv_mass[pi] == 0.0:
         slot_dx[i] = wp.vec3(0.0)
-        if apply.on != 0:
+        if apply.on == APPLY_AS_XPBD:
             x, v = applied_particle(apply, pi, particle_deltas[pi])
             apply.xm[i] = wp.vec4(x[0], x[1], x[2], xi4[3])
             apply.v[i] = v
+        elif apply.on == APPLY_ADVANCE:
+            apply.xm[i] = xi4
         return
     p = params[0]
     lr_i = lambda_rho[i]
@@ -578,10 +588,12 @@ def apply_fluid_density_correction(
     slot_dx[i] = dx
     if p.warm_start > 0.0:
         lambda_sum[i] = lambda_sum[i] + lam_i
-    if apply.on != 0:
+    if apply.on == APPLY_AS_XPBD:
         x, v = applied_particle(apply, pi, delta)
         apply.xm[i] = wp.vec4(x[0], x[1], x[2], xi4[3])
         apply.v[i] = v
+    elif apply.on == APPLY_ADVANCE:
+        apply.xm[i] = wp.vec4(xi4[0] + dx[0], xi4[1] + dx[1], xi4[2] + dx[2], xi4[3])
 
 
 @wp.kernel
@@ -819,25 +831,28 @@ def confine_vorticity_and_recover(
 
 @wp.kernel
 def begin_fluid_subiterations(loop_active: wp.array[wp.int32], loop_count: wp.array[wp.int32], bins: wp.array[float]):
-    loop_active[0] = 1
-    loop_count[0] = 0
-    for b in range(2 * COMPRESSION_BINS):
-        bins[b] = 0.0
+    """Open the substep's loop of density passes and clear the compression bins.
+
+    Launched as one block of ``COMPRESSION_BINS`` threads (``wp.launch_tiled``).
+    """
+    _, lane = wp.tid()
+    wp.tile_store(bins, wp.tile_zeros(shape=COMPRESSION_SUMS, dtype=float))
+    if lane == 0:
+        loop_active[0] = 1
+        loop_count[0] = 0
 
 
 @wp.func
 def take_compression(bins: wp.array[float]):
     """Total compression and particle count of the compression bins (see :func:`compute_fluid_density_lambda`).
 
-    Clears the bins for the next evaluation.
+    Clears the bins for the next evaluation. Called by every thread of one block: the bins are summed
+    as tiles (a tree over the block, where one thread's loop over them took about 10 us on an H100).
     """
-    total = float(0.0)
-    count = float(0.0)
-    for b in range(COMPRESSION_BINS):
-        total += bins[b]
-        count += bins[COMPRESSION_BINS + b]
-        bins[b] = 0.0
-        bins[COMPRESSION_BINS + b] = 0.0
+    total = wp.tile_sum(wp.tile_load(bins, shape=COMPRESSION_BINS, offset=0))[0]
+    count = wp.tile_sum(wp.tile_load(bins, shape=COMPRESSION_BINS, offset=COMPRESSION_BINS))[0]
+    # (every thread has passed the sums, so every load is done)
+    wp.tile_store(bins, wp.tile_zeros(shape=COMPRESSION_SUMS, dtype=float))
     return wp.vec2(total, count)
 
 
@@ -857,12 +872,17 @@ def decide_fluid_subiteration(
     It corrects unless the mean compression it measured is within the tolerance (or nothing is
     compressed); the loop ends with that or after ``max_iterations`` corrections. Reads and clears
     the pass's compression sums. Once the loop has ended (passes launched outside a graph), nothing
-    corrects.
+    corrects. One block of ``COMPRESSION_BINS`` threads; the first writes the decision (every thread
+    reads the flags before the sums, so before it writes them).
     """
+    _, lane = wp.tid()
     if loop_active[0] == 0:
-        correct[0] = 0
+        if lane == 0:
+            correct[0] = 0
         return
     sums = take_compression(bins)
+    if lane != 0:
+        return
     total = sums[0]
     count = sums[1]
     if count == 0.0 or total <= params[0].density_tolerance * count:
@@ -887,11 +907,14 @@ def decide_fluid_density_converged(
     """Skip this and the substep's remaining density passes once the mean compression is within the tolerance.
 
     Reads and clears the compression sums of this pass's evaluation; counts the passes that go on
-    to correct.
+    to correct. One block of ``COMPRESSION_BINS`` threads, as :func:`decide_fluid_subiteration`.
     """
+    _, lane = wp.tid()
     if active[0] == 0:
         return
     sums = take_compression(bins)
+    if lane != 0:
+        return
     total = sums[0]
     count = sums[1]
     tolerance = params[0].density_tolerance

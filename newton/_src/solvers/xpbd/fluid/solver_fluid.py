@@ -29,7 +29,10 @@ from .diffuse import (
     emit_diffuse_particles,
 )
 from .kernels import (
+    APPLY_ADVANCE,
+    APPLY_AS_XPBD,
     COMPRESSION_BINS,
+    COMPRESSION_SUMS,
     MAX_DISPLACEMENT_OFF,
     WALL_CONTACTS_PER_SLOT,
     FluidParams,
@@ -316,7 +319,7 @@ class FluidSolver:
             self._loop_active = wp.zeros(1, dtype=wp.int32)
             self._loop_count = wp.zeros(1, dtype=wp.int32)
             self._pass_corrects = wp.zeros(1, dtype=wp.int32)
-            self._compression_bins = wp.zeros(2 * COMPRESSION_BINS, dtype=float)
+            self._compression_bins = wp.zeros(COMPRESSION_SUMS, dtype=float)
             self.subiterations_total = wp.zeros(1, dtype=wp.int32)
             # gradient of the static walls' share of rho / rho0 per slot, from the density pass to the correction
             self.wall_grad = wp.zeros(n, dtype=wp.vec3)
@@ -340,6 +343,13 @@ class FluidSolver:
         self._slot_views = (self.search.slots, other)
         self._apply_off = ParticleApply()
         self._apply_off.on = 0
+        # a density sub-pass reading one position buffer writes its moved positions into the other
+        self._apply_advance = []
+        for target in (1, 0):
+            advance = ParticleApply()
+            advance.on = APPLY_ADVANCE
+            advance.xm = self._slot_views[target].xm
+            self._apply_advance.append(advance)
         self._current = 0
         # the current slots hold the particles' positions (and sorted_v their velocities) as SolverXPBD
         # last applied them, so no gather is needed
@@ -507,9 +517,10 @@ class FluidSolver:
         if self.config.fluid_max_iterations == 1:
             self._evaluate_constraint(active, track_compression=self.iteration_tolerance)
             if self.iteration_tolerance:
-                wp.launch(
+                wp.launch_tiled(
                     decide_fluid_density_converged,
                     dim=1,
+                    block_dim=COMPRESSION_BINS,
                     inputs=[self.params],
                     outputs=[self._compression_bins, active, self.subiterations_total],
                     device=self.device,
@@ -522,28 +533,39 @@ class FluidSolver:
                 self._positions_applied = True
                 self._velocities_applied = bool(apply[3])
             return
-        wp.launch(
+        wp.launch_tiled(
             begin_fluid_subiterations,
             dim=1,
+            block_dim=COMPRESSION_BINS,
             outputs=[self._loop_active, self._loop_count, self._compression_bins],
             device=self.device,
         )
         if self.device.is_capturing or self.device.is_cpu:
             # a conditional while node in a graph; on the CPU the flag is read where it lies
-            wp.capture_while(self._loop_active, self._density_subiteration, particle_deltas=particle_deltas)
+            wp.capture_while(self._loop_active, self._density_subiteration_pair, particle_deltas=particle_deltas)
         else:
             # no graph: launch every allowed pass (reading the flag would synchronise); the ones
             # after the decision do nothing
-            for _ in range(self.config.fluid_max_iterations):
-                self._density_subiteration(particle_deltas)
+            for _ in range((self.config.fluid_max_iterations + 1) // 2):
+                self._density_subiteration_pair(particle_deltas)
+
+    def _density_subiteration_pair(self, particle_deltas: wp.array) -> None:
+        # each pass's correction writes the moved positions into the other buffer, which the next pass
+        # reads: two passes per trip of the loop bring them back (a second pass after the loop's
+        # decision to stop does nothing; the positions after the loop are gathered again when needed)
+        start = self._current
+        for source in (start, 1 - start):
+            self._current = source
+            self._density_subiteration(particle_deltas)
+        self._current = start
 
     def _density_subiteration(self, particle_deltas: wp.array) -> None:
-        n = self.fluid_count
         # (the density pass measures the walls where the last pass left the particles)
         self._evaluate_constraint(self._loop_active, track_compression=True)
-        wp.launch(
+        wp.launch_tiled(
             decide_fluid_subiteration,
             dim=1,
+            block_dim=COMPRESSION_BINS,
             inputs=[self.params, self.config.fluid_max_iterations],
             outputs=[
                 self._compression_bins,
@@ -554,10 +576,7 @@ class FluidSolver:
             ],
             device=self.device,
         )
-        self._correct(particle_deltas, self._pass_corrects)
-        wp.launch(
-            advance_fluid_slots, dim=n, inputs=[self.slots, self._pass_corrects, self.slot_dx], device=self.device
-        )
+        self._correct(particle_deltas, self._pass_corrects, advance=True)
 
     def _warm_start_on(self) -> bool:
         # in a graph the passes are captured and check the parameter on the device (so it may change)
@@ -591,14 +610,21 @@ class FluidSolver:
         wp.launch(advance_fluid_slots, dim=n, inputs=[self.slots, active, self.slot_dx], device=self.device)
 
     def _correct(
-        self, particle_deltas: wp.array, active: wp.array, x_pred: wp.array | None = None, apply: tuple | None = None
+        self,
+        particle_deltas: wp.array,
+        active: wp.array,
+        x_pred: wp.array | None = None,
+        apply: tuple | None = None,
+        advance: bool = False,
     ) -> None:
         m = self.model
         applied = self._apply_off
-        if x_pred is not None:
-            # the applied positions go to the other position buffer (this pass reads the current one)
+        # the corrected positions go to the other position buffer (this pass reads the current one)
+        if advance:
+            applied = self._apply_advance[self._current]
+        elif x_pred is not None:
             applied = ParticleApply()
-            applied.on = 1
+            applied.on = APPLY_AS_XPBD
             applied.x_pred = x_pred
             applied.x_start, applied.dt, applied.v_max = apply[0], float(apply[1]), float(apply[2])
             applied.xm = self._slot_views[1 - self._current].xm

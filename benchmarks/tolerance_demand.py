@@ -1,0 +1,123 @@
+# SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
+# SPDX-License-Identifier: Apache-2.0
+
+"""What a density tolerance asks for over time: density passes per substep along a dam break.
+
+The 2:1 column of ``speed_accuracy.py`` (Koshizuka & Oka, tank 5L, no cohesion, viscosity or speed
+clamp) runs with ``fluid_density_tolerance`` and up to ``--max-passes`` density passes per XPBD
+iteration; every ``--every`` frames it prints the passes that corrected per substep since the last
+row, the RMS speed and the solver's largest compression. A tolerance can only save passes where
+the substeps need fewer than the fixed count would run. Writes JSON with ``--json``.
+
+Usage::
+
+    python benchmarks/tolerance_demand.py [--tolerance 0.0025] [--warm-start 0.5] [--seconds 5] [--json out.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import sys
+from pathlib import Path
+
+import numpy as np
+import warp as wp
+
+import newton
+
+# benchmarks/ is on the path of a script run from it
+import validate_dam_break as validate  # noqa: E402
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--per-l", type=int, default=20, help="particles across L")
+    parser.add_argument("--depth", type=int, default=16, help="particle layers in y")
+    parser.add_argument("--substeps", type=int, default=8)
+    parser.add_argument("--iterations", type=int, default=1, help="XPBD iterations")
+    parser.add_argument("--max-passes", type=int, default=8, help="fluid_max_iterations")
+    parser.add_argument("--tolerance", type=float, default=0.0025, help="fluid_density_tolerance")
+    parser.add_argument("--warm-start", type=float, default=0.0, help="fluid_warm_start")
+    parser.add_argument("--seconds", type=float, default=5.0)
+    parser.add_argument("--every", type=int, default=15, help="frames per row")
+    parser.add_argument("--device", default=None)
+    parser.add_argument("--json", default=None)
+    args = parser.parse_args(argv)
+
+    wp.config.quiet = True
+    device = wp.get_device(args.device)
+    cfg = argparse.Namespace(
+        substeps=args.substeps,
+        iterations=args.iterations,
+        cohesion=0.0,
+        viscosity=0.0,
+        speed_clamp=0.0,
+        floor_friction=0.0,
+    )
+    model, solver, pipeline, dt = validate.build(
+        args.per_l,
+        args.depth,
+        cfg,
+        device,
+        height=4.0 * validate.L,
+        fluid_density_tolerance=args.tolerance,
+        fluid_max_iterations=args.max_passes,
+        fluid_warm_start=args.warm_start,
+    )
+    states = [model.state(), model.state()]
+    contacts = pipeline.contacts()
+    rows = []
+    passes_before = 0
+    for frame in range(int(round(args.seconds * 60.0))):
+        for _ in range(args.substeps):
+            states[0].clear_forces()
+            pipeline.collide(states[0], contacts)
+            solver.step(states[0], states[1], None, contacts, dt)
+            states[0], states[1] = states[1], states[0]
+        if (frame + 1) % args.every:
+            continue
+        stats = solver.fluid_diagnostics(states[0])
+        speed = np.linalg.norm(states[0].particle_qd.numpy().astype(np.float64), axis=1)
+        passes = stats["density_subiterations"]
+        rows.append(
+            {
+                "t_s": (frame + 1) / 60.0,
+                "passes_per_substep": (passes - passes_before) / (args.every * args.substeps),
+                "rms_speed_m_s": float(np.sqrt(np.mean(speed**2))),
+                "max_compression": stats["max_compression"],
+                "mean_compression": stats["mean_compression"],
+            }
+        )
+        passes_before = passes
+        r = rows[-1]
+        print(
+            f"t = {r['t_s']:.2f} s: {r['passes_per_substep']:.2f} passes per substep, RMS speed "
+            f"{r['rms_speed_m_s']:.3f} m/s, mean / max compression {100 * r['mean_compression']:.2f} / "
+            f"{100 * r['max_compression']:.2f} %",
+            flush=True,
+        )
+    result = {
+        "benchmark": "tolerance_demand",
+        "machine": platform.node(),
+        "device": device.name if device.is_cuda else "cpu",
+        "warp": wp.config.version,
+        "newton": newton.__version__,
+        "particles": int(model.particle_count),
+        "per_L": args.per_l,
+        "depth_layers": args.depth,
+        "substeps": args.substeps,
+        "iterations": args.iterations,
+        "fluid_max_iterations": args.max_passes,
+        "fluid_density_tolerance": args.tolerance,
+        "fluid_warm_start": args.warm_start,
+        "rows": rows,
+    }
+    if args.json:
+        Path(args.json).write_text(json.dumps(result, indent=1))
+    return result
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
