@@ -39,13 +39,35 @@ def poly6(r2: np.ndarray, h: float) -> np.ndarray:
     return 315.0 / (64.0 * math.pi * h**9) * np.maximum(h * h - r2, 0.0) ** 3
 
 
+def quarter_density_table(spacing: float, h: float, mass: float, size: int = 33):
+    """Density of the ghost lattice behind both of two perpendicular walls, on a grid of the two distances.
+
+    The sum over the lattice points behind both planes (layers half a spacing behind each, as in
+    the plane table), for distances on ``[0, spacing]`` from each, tapered in each distance like the
+    plane table (so it is what the two plane tables both counted). Returns (distances, table).
+    """
+    d = spacing
+    n = int(math.ceil(h / d))
+    b = np.arange(-n, n + 1) * d
+    deltas = np.linspace(0.0, d, size)
+    x = deltas[:, None] + 0.5 * d + np.arange(n + 1)[None, :] * d
+    r2 = x[:, None, :, None, None] ** 2 + x[None, :, None, :, None] ** 2 + b[None, None, None, None, :] ** 2
+    rho = mass * poly6(r2, h).sum(axis=(2, 3, 4))
+    t = np.clip((deltas - 0.75 * d) / (0.25 * d), 0.0, 1.0)
+    window = 1.0 - t * t * (3.0 - 2.0 * t)
+    return deltas, rho * window[:, None] * window[None, :]
+
+
 def measure_density_error(q: np.ndarray, mass: float, spacing: float, h: float, walls=()) -> dict:
     """Poly6 density of every particle relative to the rest-lattice density, independent of the solver.
 
     ``walls`` are planes ``(normal, offset)`` (fluid side ``dot(normal, x) > offset``). The
     ``*_walls`` results add the density of the lattice the fluid would continue as behind each
-    plane (the tabulated ghost-lattice sum the solver also uses); the others are the fluid's own sum.
+    plane (the tabulated ghost-lattice sum the solver also uses), less, for each pair of
+    perpendicular planes, that of the lattice behind both (counted by both; an exact sum here,
+    where the solver uses a product of the two distances' factors); the others are the fluid's own sum.
     """
+    from scipy.interpolate import RegularGridInterpolator  # noqa: PLC0415
     from scipy.spatial import cKDTree  # noqa: PLC0415
 
     n = int(math.ceil(h / spacing))
@@ -62,10 +84,20 @@ def measure_density_error(q: np.ndarray, mass: float, spacing: float, h: float, 
     rho_walls = rho.copy()
     table, _ = wall_density_tables(spacing, h, mass)
     samples = np.linspace(0.0, h, len(table))
+    deltas = []
     for normal, offset in walls:
-        delta = q @ np.asarray(normal, dtype=np.float64) - offset
+        delta = np.maximum(q @ np.asarray(normal, dtype=np.float64) - offset, 0.0)
+        deltas.append(delta)
         near = delta < h
-        rho_walls[near] += np.interp(np.maximum(delta[near], 0.0), samples, table)
+        rho_walls[near] += np.interp(delta[near], samples, table)
+    grid, quarter = quarter_density_table(spacing, h, mass)
+    behind_both = RegularGridInterpolator((grid, grid), quarter)
+    for a in range(len(walls)):
+        for b in range(a + 1, len(walls)):
+            if abs(np.dot(walls[a][0], walls[b][0])) > 0.05:
+                continue
+            near = (deltas[a] < spacing) & (deltas[b] < spacing)
+            rho_walls[near] -= behind_both(np.stack([deltas[a][near], deltas[b][near]], axis=1))
     result = {}
     for suffix, values in (("", rho), ("_walls", rho_walls)):
         e = values / rho0 - 1.0

@@ -27,9 +27,6 @@ import warp as wp
 
 import newton
 
-# benchmarks/ is on the path of a script run from it
-import validate_dam_break as validate  # noqa: E402
-
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -45,6 +42,8 @@ def main(argv=None):
     parser.add_argument("--device", default=None)
     parser.add_argument("--json", default=None)
     args = parser.parse_args(argv)
+    # benchmarks/ is on the path of a script run from it
+    import validate_dam_break as validate  # noqa: PLC0415
 
     wp.config.quiet = True
     device = wp.get_device(args.device)
