@@ -107,17 +107,11 @@ def run_xpbd(args, L: float, times: np.ndarray) -> dict:
 
     wp.config.quiet = True
     device = wp.get_device(args.device)
-    cfg = argparse.Namespace(
-        substeps=args.substeps,
-        iterations=args.iterations,
-        cohesion=0.0,
-        viscosity=0.0,
-        speed_clamp=0.0,
-        floor_friction=0.0,
-    )
     d = L / args.per_l
     gap = args.xpbd_wall_gap * d
-    model, solver, pipeline, dt = validate.build(args.per_l, args.depth, cfg, device, height=4.0 * L, wall_gap=gap)
+    model, solver, pipeline, dt = validate.build_plain(
+        args.per_l, args.depth, args.substeps, args.iterations, device, wall_gap=gap
+    )
     # with a gap the fluid's boundary planes are the walls, as for DFSPH (resting centres half a spacing inside)
     rec = Recorder(L, d, 1000.0 * d**3, solver.fluid_smoothing_length, args.depth * d, wall_shift=gap)
     stepper = validate.Stepper(model, solver, pipeline, dt)

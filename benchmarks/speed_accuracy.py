@@ -43,15 +43,12 @@ def run_one(args, device, substeps: int, iterations: int, tolerance: float, pass
     import warp as wp  # noqa: PLC0415
 
     L = validate.L
-    cfg = argparse.Namespace(
-        substeps=substeps, iterations=iterations, cohesion=0.0, viscosity=0.0, speed_clamp=0.0, floor_friction=0.0
-    )
-    model, solver, pipeline, dt = validate.build(
+    model, solver, pipeline, dt = validate.build_plain(
         args.per_l,
         args.depth,
-        cfg,
+        substeps,
+        iterations,
         device,
-        height=4.0 * L,
         fluid_density_tolerance=tolerance,
         fluid_max_iterations=passes,
         fluid_warm_start=args.warm_start,

@@ -47,42 +47,27 @@ def main(argv=None):
 
     wp.config.quiet = True
     device = wp.get_device(args.device)
-    cfg = argparse.Namespace(
-        substeps=args.substeps,
-        iterations=args.iterations,
-        cohesion=0.0,
-        viscosity=0.0,
-        speed_clamp=0.0,
-        floor_friction=0.0,
-    )
-    model, solver, pipeline, dt = validate.build(
+    model, solver, pipeline, dt = validate.build_plain(
         args.per_l,
         args.depth,
-        cfg,
+        args.substeps,
+        args.iterations,
         device,
-        height=4.0 * validate.L,
         fluid_density_tolerance=args.tolerance,
         fluid_max_iterations=args.max_passes,
         fluid_warm_start=args.warm_start,
     )
-    states = [model.state(), model.state()]
-    contacts = pipeline.contacts()
+    stepper = validate.Stepper(model, solver, pipeline, dt)
     rows = []
     passes_before = 0
-    for frame in range(int(round(args.seconds * 60.0))):
-        for _ in range(args.substeps):
-            states[0].clear_forces()
-            pipeline.collide(states[0], contacts)
-            solver.step(states[0], states[1], None, contacts, dt)
-            states[0], states[1] = states[1], states[0]
-        if (frame + 1) % args.every:
-            continue
-        stats = solver.fluid_diagnostics(states[0])
-        speed = np.linalg.norm(states[0].particle_qd.numpy().astype(np.float64), axis=1)
+    for frame in range(args.every, int(round(args.seconds * 60.0)) + 1, args.every):
+        state = stepper.advance_to(frame / 60.0)
+        stats = solver.fluid_diagnostics(state)
+        speed = np.linalg.norm(state.particle_qd.numpy().astype(np.float64), axis=1)
         passes = stats["density_subiterations"]
         rows.append(
             {
-                "t_s": (frame + 1) / 60.0,
+                "t_s": frame / 60.0,
                 "passes_per_substep": (passes - passes_before) / (args.every * args.substeps),
                 "rms_speed_m_s": float(np.sqrt(np.mean(speed**2))),
                 "max_compression": stats["max_compression"],

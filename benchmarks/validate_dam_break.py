@@ -104,6 +104,17 @@ def build(per_l: int, depth_layers: int, args, device, height: float = 2.5 * L, 
     return model, solver, pipeline, dt
 
 
+def build_plain(per_l: int, depth_layers: int, substeps: int, iterations: int, device, **kwargs):
+    """The column in a tank 4L tall with nothing but the density solve: no cohesion, viscosity, speed clamp or friction.
+
+    The scene of the speed-accuracy sweep and the reference comparison; ``kwargs`` go to :func:`build`.
+    """
+    cfg = argparse.Namespace(
+        substeps=substeps, iterations=iterations, cohesion=0.0, viscosity=0.0, speed_clamp=0.0, floor_friction=0.0
+    )
+    return build(per_l, depth_layers, cfg, device, height=4.0 * L, **kwargs)
+
+
 class Stepper:
     """The two states and the contacts of a scene from :func:`build`, stepped forward to given times."""
 

@@ -689,17 +689,15 @@ class FluidSolver:
                     recover_nonfinite_fluid,
                     dim=self.fluid_count,
                     inputs=[self.params, self.fluid_particle, self.model.particle_flags, dt],
-                    outputs=[
-                        state_out.particle_q,
-                        state_out.particle_qd,
-                        self.last_finite_q,
-                        self.nonfinite_count,
-                        self.fast_count,
-                    ],
+                    outputs=self._recovery_outputs(state_out),
                     device=self.device,
                 )
         if self.diffuse is not None:
             self._diffuse_pass(state_out, dt)
+
+    def _recovery_outputs(self, state_out) -> list:
+        """The arrays :func:`~.kernels.recover_fluid_particle` updates, for the kernels that call it."""
+        return [state_out.particle_q, state_out.particle_qd, self.last_finite_q, self.nonfinite_count, self.fast_count]
 
     def _diffuse_pass(self, state_out, dt: float) -> None:
         """Let the fluid emit diffuse particles, then advect them all (new ones leave shapes at once)."""
@@ -781,13 +779,7 @@ class FluidSolver:
                 self.model.particle_flags,
                 dt,
             ],
-            outputs=[
-                state_out.particle_q,
-                state_out.particle_qd,
-                self.last_finite_q,
-                self.nonfinite_count,
-                self.fast_count,
-            ],
+            outputs=self._recovery_outputs(state_out),
             device=self.device,
         )
 
