@@ -295,9 +295,10 @@ _FLUID_DOC = """
             fluid_relaxation: Scale of the density correction, in (0, 2]. Defaults to 1.
             fluid_max_neighbors: Neighbours used per particle, in [0, 4096]; 0 uses the whole neighbourhood.
             fluid_density_tolerance: Mean compression (of max(rho/rho0 - 1, 0)) at which the density passes
-                stop, >= 0. Defaults to 0 (no early stop). With ``fluid_max_iterations`` 1 the substep's
-                remaining XPBD iterations skip the density pass (``iterations`` is then the most passes);
-                with more, the passes of each iteration stop. Decided on the device. To change it after
+                after the first stop, >= 0. Defaults to 0 (no early stop). With ``fluid_max_iterations`` 1
+                the substep's remaining XPBD iterations skip the density pass (``iterations`` is then the
+                most passes); with more, the passes of each iteration after its first stop. Decided on
+                the device. To change it after
                 construction with ``fluid_max_iterations`` 1, create the solver with a value > 0.
             fluid_max_iterations: Density passes per XPBD iteration, in [1, 64]. Defaults to 1.
             fluid_max_displacement: Longest travel of a fluid particle in one substep [rest distances], > 0.

@@ -830,16 +830,33 @@ def confine_vorticity_and_recover(
 
 
 @wp.kernel
-def begin_fluid_subiterations(loop_active: wp.array[wp.int32], loop_count: wp.array[wp.int32], bins: wp.array[float]):
-    """Open the substep's loop of density passes and clear the compression bins.
+def begin_fluid_substep(active: wp.array[wp.int32], iterations_total: wp.array[wp.int32]):
+    """Open a substep's density passes with the tolerance on the XPBD iterations.
 
-    Launched as one block of ``COMPRESSION_BINS`` threads (``wp.launch_tiled``).
+    Its first pass always corrects (the tolerance decides the passes after it): count that one.
+    """
+    active[0] = 1
+    iterations_total[0] = iterations_total[0] + 1
+
+
+@wp.kernel
+def begin_fluid_subiterations(
+    loop_active: wp.array[wp.int32],
+    loop_count: wp.array[wp.int32],
+    bins: wp.array[float],
+    iterations_total: wp.array[wp.int32],
+):
+    """Open the loop of density passes after an XPBD iteration's first pass and clear the compression bins.
+
+    The first pass, launched before the loop, always corrects: it is counted here. Launched as one
+    block of ``COMPRESSION_BINS`` threads (``wp.launch_tiled``).
     """
     _, lane = wp.tid()
     wp.tile_store(bins, wp.tile_zeros(shape=COMPRESSION_SUMS, dtype=float))
     if lane == 0:
         loop_active[0] = 1
         loop_count[0] = 0
+        iterations_total[0] = iterations_total[0] + 1
 
 
 @wp.func
@@ -867,10 +884,10 @@ def decide_fluid_subiteration(
     loop_count: wp.array[wp.int32],
     iterations_total: wp.array[wp.int32],
 ):
-    """Decide whether this density pass corrects and whether another one follows.
+    """Decide whether this density pass (after the iteration's first) corrects and whether another one follows.
 
     It corrects unless the mean compression it measured is within the tolerance (or nothing is
-    compressed); the loop ends with that or after ``max_iterations`` corrections. Reads and clears
+    compressed); the loop ends with that or after ``max_iterations`` corrections in the loop. Reads and clears
     the pass's compression sums. Once the loop has ended (passes launched outside a graph), nothing
     corrects. One block of ``COMPRESSION_BINS`` threads; the first writes the decision (every thread
     reads the flags before the sums, so before it writes them).
@@ -906,7 +923,7 @@ def decide_fluid_density_converged(
 ):
     """Skip this and the substep's remaining density passes once the mean compression is within the tolerance.
 
-    Reads and clears the compression sums of this pass's evaluation; counts the passes that go on
+    Not launched for the substep's first pass, which always corrects. Reads and clears the compression sums of this pass's evaluation; counts the passes that go on
     to correct. One block of ``COMPRESSION_BINS`` threads, as :func:`decide_fluid_subiteration`.
     """
     _, lane = wp.tid()

@@ -44,6 +44,7 @@ from .kernels import (
     apply_fluid_viscosity,
     apply_fluid_warm_start,
     begin_fluid_subiterations,
+    begin_fluid_substep,
     compute_fluid_density_lambda,
     confine_vorticity_and_recover,
     decide_fluid_density_converged,
@@ -465,8 +466,13 @@ class FluidSolver:
             particle_qd,
             walls,
         )
-        if self.iteration_tolerance:
-            self._substep_active.fill_(1)
+        if self.iteration_tolerance and particle_q_start is not None:
+            wp.launch(
+                begin_fluid_substep,
+                dim=1,
+                outputs=[self._substep_active, self.subiterations_total],
+                device=self.device,
+            )
         # the build gathered these positions into slot order: the first iteration uses them as they are
         self._slots_hold_positions = True
         self._current = 0
@@ -483,15 +489,17 @@ class FluidSolver:
 
         ``apply`` = ``(x_start, dt, v_max, velocities)`` says how ``SolverXPBD`` applies the deltas
         after this call (:class:`~.kernels.ParticleApply`; ``x_start`` the substep's start positions).
-        With it, and one density pass per iteration without a tolerance, the correction pass also
-        writes every fluid particle's applied position in slot order (and, with ``velocities``, its
-        velocity: false where something changes the velocities after the iterations), so the next
-        iteration and the viscosity pass gather nothing: two launches less per substep.
+        With it, and one density pass per iteration that is sure to correct (no tolerance, or the
+        substep's first), the correction pass also writes every fluid particle's applied position in
+        slot order (and, with ``velocities``, its velocity: false where something changes the
+        velocities after the iterations), so the next iteration and the viscosity pass gather nothing:
+        two launches less per substep.
 
         With ``fluid_max_iterations`` 1 this is one Jacobi pass (with a tolerance set at construction,
-        skipped once the substep's mean compression has met it). Otherwise up to that many passes
-        run on the gathered positions, each starting where the last one left them, and stop early
-        once the mean compression is at most ``fluid_density_tolerance`` (if above 0); each pass
+        skipped once the substep's mean compression has met it; the substep's first pass always
+        corrects). Otherwise up to that many passes run on the gathered positions, each starting where
+        the last one left them; the first always corrects, and the ones after it stop early once the
+        mean compression is at most ``fluid_density_tolerance`` (if above 0); each pass
         measures the walls again where the last one left the particles. The count is decided on the
         device: inside a graph capture the loop is a conditional while node; on a GPU outside one
         every allowed pass is launched and the passes after the decision do nothing (no
@@ -501,6 +509,8 @@ class FluidSolver:
         m, n = self.model, self.fluid_count
         # with the tolerance on the XPBD iterations, a converged substep skips the rest of its passes
         active = self._substep_active if self.iteration_tolerance else self._always_active
+        # the substep's first iteration starts from the positions the build gathered
+        first = self._slots_hold_positions
         if not self._slots_hold_positions and not self._positions_applied:
             wp.launch(
                 gather_fluid_positions,
@@ -515,8 +525,12 @@ class FluidSolver:
         self._positions_applied = False
         self._velocities_applied = False
         if self.config.fluid_max_iterations == 1:
-            self._evaluate_constraint(active, track_compression=self.iteration_tolerance)
-            if self.iteration_tolerance:
+            # the substep's first pass always corrects (a tolerance met by a small or splashing fluid's
+            # mean would otherwise leave its compressed particles, and its cohesion, unsolved); the
+            # tolerance decides the passes after it, from where the first left the fluid
+            decide = self.iteration_tolerance and not first
+            self._evaluate_constraint(active, track_compression=decide)
+            if decide:
                 wp.launch_tiled(
                     decide_fluid_density_converged,
                     dim=1,
@@ -526,18 +540,23 @@ class FluidSolver:
                     device=self.device,
                 )
             # (a converged substep skips its corrections, which then write no applied positions)
-            predict = apply is not None and not self.iteration_tolerance
+            predict = apply is not None and not decide
             self._correct(particle_deltas, active, particle_q if predict else None, apply)
             if predict:
                 self._current = 1 - self._current
                 self._positions_applied = True
                 self._velocities_applied = bool(apply[3])
             return
+        # the iteration's first pass always corrects (as above); it writes its moved positions into the
+        # other position buffer, where the loop's passes go on
+        self._evaluate_constraint(self._always_active)
+        self._correct(particle_deltas, self._always_active, advance=True)
+        self._current = 1 - self._current
         wp.launch_tiled(
             begin_fluid_subiterations,
             dim=1,
             block_dim=COMPRESSION_BINS,
-            outputs=[self._loop_active, self._loop_count, self._compression_bins],
+            outputs=[self._loop_active, self._loop_count, self._compression_bins, self.subiterations_total],
             device=self.device,
         )
         if self.device.is_capturing or self.device.is_cpu:
@@ -546,7 +565,7 @@ class FluidSolver:
         else:
             # no graph: launch every allowed pass (reading the flag would synchronise); the ones
             # after the decision do nothing
-            for _ in range((self.config.fluid_max_iterations + 1) // 2):
+            for _ in range(self.config.fluid_max_iterations // 2):
                 self._density_subiteration_pair(particle_deltas)
 
     def _density_subiteration_pair(self, particle_deltas: wp.array) -> None:
@@ -566,7 +585,7 @@ class FluidSolver:
             decide_fluid_subiteration,
             dim=1,
             block_dim=COMPRESSION_BINS,
-            inputs=[self.params, self.config.fluid_max_iterations],
+            inputs=[self.params, self.config.fluid_max_iterations - 1],
             outputs=[
                 self._compression_bins,
                 self._loop_active,
