@@ -829,36 +829,6 @@ def confine_vorticity_and_recover(
     )
 
 
-@wp.kernel
-def begin_fluid_substep(active: wp.array[wp.int32], iterations_total: wp.array[wp.int32]):
-    """Open a substep's density passes with the tolerance on the XPBD iterations.
-
-    Its first pass always corrects (the tolerance decides the passes after it): count that one.
-    """
-    active[0] = 1
-    iterations_total[0] = iterations_total[0] + 1
-
-
-@wp.kernel
-def begin_fluid_subiterations(
-    loop_active: wp.array[wp.int32],
-    loop_count: wp.array[wp.int32],
-    bins: wp.array[float],
-    iterations_total: wp.array[wp.int32],
-):
-    """Open the loop of density passes after an XPBD iteration's first pass and clear the compression bins.
-
-    The first pass, launched before the loop, always corrects: it is counted here. Launched as one
-    block of ``COMPRESSION_BINS`` threads (``wp.launch_tiled``).
-    """
-    _, lane = wp.tid()
-    wp.tile_store(bins, wp.tile_zeros(shape=COMPRESSION_SUMS, dtype=float))
-    if lane == 0:
-        loop_active[0] = 1
-        loop_count[0] = 0
-        iterations_total[0] = iterations_total[0] + 1
-
-
 @wp.func
 def take_compression(bins: wp.array[float]):
     """Total compression and particle count of the compression bins (see :func:`compute_fluid_density_lambda`).
@@ -871,6 +841,39 @@ def take_compression(bins: wp.array[float]):
     # (every thread has passed the sums, so every load is done)
     wp.tile_store(bins, wp.tile_zeros(shape=COMPRESSION_SUMS, dtype=float))
     return wp.vec2(total, count)
+
+
+@wp.kernel
+def decide_after_first_fluid_pass(
+    params: wp.array[FluidParams],
+    more: int,
+    # in/out
+    bins: wp.array[float],
+    go_on: wp.array[wp.int32],
+    loop_count: wp.array[wp.int32],
+    iterations_total: wp.array[wp.int32],
+):
+    """Whether density passes follow the first one, which always corrects, from the compression it measured.
+
+    The first pass of a substep (of each XPBD iteration with sub-passes) corrects whatever the
+    tolerance says: the mean counts the under-dense surface as 0, so a small or splashing fluid meets
+    any tolerance while some of its particles are compressed. Passes follow while its mean
+    compression, measured before its correction, is above the tolerance (anything compressed with no
+    tolerance) and ``more`` passes are allowed. Counts the first pass, opens the loop's count, and
+    reads and clears the pass's compression sums. One block of ``COMPRESSION_BINS`` threads.
+    """
+    _, lane = wp.tid()
+    sums = take_compression(bins)
+    if lane != 0:
+        return
+    iterations_total[0] = iterations_total[0] + 1
+    loop_count[0] = 0
+    total = sums[0]
+    count = sums[1]
+    if more > 0 and count > 0.0 and total > params[0].density_tolerance * count:
+        go_on[0] = 1
+    else:
+        go_on[0] = 0
 
 
 @wp.kernel
@@ -923,7 +926,7 @@ def decide_fluid_density_converged(
 ):
     """Skip this and the substep's remaining density passes once the mean compression is within the tolerance.
 
-    Not launched for the substep's first pass, which always corrects. Reads and clears the compression sums of this pass's evaluation; counts the passes that go on
+    Not launched for the substep's first pass (see :func:`decide_after_first_fluid_pass`). Reads and clears the compression sums of this pass's evaluation; counts the passes that go on
     to correct. One block of ``COMPRESSION_BINS`` threads, as :func:`decide_fluid_subiteration`.
     """
     _, lane = wp.tid()

@@ -43,10 +43,9 @@ from .kernels import (
     apply_fluid_density_correction,
     apply_fluid_viscosity,
     apply_fluid_warm_start,
-    begin_fluid_subiterations,
-    begin_fluid_substep,
     compute_fluid_density_lambda,
     confine_vorticity_and_recover,
+    decide_after_first_fluid_pass,
     decide_fluid_density_converged,
     decide_fluid_subiteration,
     gather_fluid_positions,
@@ -466,13 +465,6 @@ class FluidSolver:
             particle_qd,
             walls,
         )
-        if self.iteration_tolerance and particle_q_start is not None:
-            wp.launch(
-                begin_fluid_substep,
-                dim=1,
-                outputs=[self._substep_active, self.subiterations_total],
-                device=self.device,
-            )
         # the build gathered these positions into slot order: the first iteration uses them as they are
         self._slots_hold_positions = True
         self._current = 0
@@ -507,10 +499,11 @@ class FluidSolver:
         substep's first iteration first moves the fluid by the multipliers carried from the last one.
         """
         m, n = self.model, self.fluid_count
-        # with the tolerance on the XPBD iterations, a converged substep skips the rest of its passes
-        active = self._substep_active if self.iteration_tolerance else self._always_active
-        # the substep's first iteration starts from the positions the build gathered
+        # the substep's first iteration starts from the positions the build gathered; its first density
+        # pass always corrects (see decide_after_first_fluid_pass), and with the tolerance on the XPBD
+        # iterations a converged substep skips the rest of its passes
         first = self._slots_hold_positions
+        active = self._substep_active if self.iteration_tolerance and not first else self._always_active
         if not self._slots_hold_positions and not self._positions_applied:
             wp.launch(
                 gather_fluid_positions,
@@ -525,40 +518,34 @@ class FluidSolver:
         self._positions_applied = False
         self._velocities_applied = False
         if self.config.fluid_max_iterations == 1:
-            # the substep's first pass always corrects (a tolerance met by a small or splashing fluid's
-            # mean would otherwise leave its compressed particles, and its cohesion, unsolved); the
-            # tolerance decides the passes after it, from where the first left the fluid
-            decide = self.iteration_tolerance and not first
-            self._evaluate_constraint(active, track_compression=decide)
-            if decide:
-                wp.launch_tiled(
-                    decide_fluid_density_converged,
-                    dim=1,
-                    block_dim=COMPRESSION_BINS,
-                    inputs=[self.params],
-                    outputs=[self._compression_bins, active, self.subiterations_total],
-                    device=self.device,
-                )
-            # (a converged substep skips its corrections, which then write no applied positions)
-            predict = apply is not None and not decide
+            self._evaluate_constraint(active, track_compression=self.iteration_tolerance)
+            if self.iteration_tolerance:
+                if first:
+                    # corrects below whatever it measured; decides whether the later iterations do
+                    self._decide_after_first_pass(self._substep_active, 1)
+                else:
+                    wp.launch_tiled(
+                        decide_fluid_density_converged,
+                        dim=1,
+                        block_dim=COMPRESSION_BINS,
+                        inputs=[self.params],
+                        outputs=[self._compression_bins, active, self.subiterations_total],
+                        device=self.device,
+                    )
+            # (a pass that may be skipped writes no applied positions)
+            predict = apply is not None and active is self._always_active
             self._correct(particle_deltas, active, particle_q if predict else None, apply)
             if predict:
                 self._current = 1 - self._current
                 self._positions_applied = True
                 self._velocities_applied = bool(apply[3])
             return
-        # the iteration's first pass always corrects (as above); it writes its moved positions into the
-        # other position buffer, where the loop's passes go on
-        self._evaluate_constraint(self._always_active)
+        # the iteration's first pass corrects; it writes its moved positions into the other position
+        # buffer, where the loop's passes go on (while it measured the mean compression above the tolerance)
+        self._evaluate_constraint(self._always_active, track_compression=True)
+        self._decide_after_first_pass(self._loop_active, self.config.fluid_max_iterations - 1)
         self._correct(particle_deltas, self._always_active, advance=True)
         self._current = 1 - self._current
-        wp.launch_tiled(
-            begin_fluid_subiterations,
-            dim=1,
-            block_dim=COMPRESSION_BINS,
-            outputs=[self._loop_active, self._loop_count, self._compression_bins, self.subiterations_total],
-            device=self.device,
-        )
         if self.device.is_capturing or self.device.is_cpu:
             # a conditional while node in a graph; on the CPU the flag is read where it lies
             wp.capture_while(self._loop_active, self._density_subiteration_pair, particle_deltas=particle_deltas)
@@ -567,6 +554,16 @@ class FluidSolver:
             # after the decision do nothing
             for _ in range(self.config.fluid_max_iterations // 2):
                 self._density_subiteration_pair(particle_deltas)
+
+    def _decide_after_first_pass(self, go_on: wp.array, more: int) -> None:
+        wp.launch_tiled(
+            decide_after_first_fluid_pass,
+            dim=1,
+            block_dim=COMPRESSION_BINS,
+            inputs=[self.params, more],
+            outputs=[self._compression_bins, go_on, self._loop_count, self.subiterations_total],
+            device=self.device,
+        )
 
     def _density_subiteration_pair(self, particle_deltas: wp.array) -> None:
         # each pass's correction writes the moved positions into the other buffer, which the next pass
