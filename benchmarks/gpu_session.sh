@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/performance.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|ncu|variants|tolerance|tolerance-chart|accuracy|surge|diffuse|render|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|ncu|variants|tolerance|tolerance-small|tolerance-chart|accuracy|surge|diffuse|render|gallery|gltests|tests]...
 set -u
 out=${1:?output folder}; shift
 export PYTHONUNBUFFERED=1
@@ -25,6 +25,14 @@ for what in "$@"; do
                "--iterations 1 --density-iterations 4 --density-tolerance 0.005" "--iterations 1 --density-iterations 2"; do
         echo "== $v"; python3 benchmarks/dam_break.py $v --trials 3 --json "$out/dam_break_100k_${v//[ -.]/_}.json" 2>&1 | grep -A1 "^device"
       done ;;
+    tolerance-small)
+      # the tolerance on a small splash (1,001 particles), against one fixed iteration (docs/validation.md)
+      for t in 0.01 0.002; do
+        python3 benchmarks/dam_break.py --particles 1000 --trials 3 --iterations 1 --density-iterations 4 \
+          --density-tolerance $t --json "$out/dam_break_1k_tolerance_${t}_h100.json" 2>&1 | grep -A1 "^device"
+      done
+      python3 benchmarks/dam_break.py --particles 1000 --trials 3 --iterations 1 \
+        --json "$out/dam_break_1k_fixed_1_h100.json" 2>&1 | grep -A1 "^device" ;;
     render)
       # needs an EGL driver (NVIDIA's libEGL_nvidia on a GPU machine) and pyglet on the path
       ls /usr/lib/x86_64-linux-gnu/ | grep -iE '^libEGL' | tee "$out/egl.txt"
