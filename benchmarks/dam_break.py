@@ -254,6 +254,7 @@ def run(args) -> dict:
         fluid_vorticity=0.0,
         fluid_relaxation=args.relaxation,
         fluid_warm_start=args.warm_start,
+        fluid_density_ramp=args.density_ramp,
         fluid_density_tolerance=args.density_tolerance,
         fluid_max_iterations=args.density_iterations,
         max_diffuse_particles=args.diffuse,
@@ -338,6 +339,7 @@ def run(args) -> dict:
         "cohesion": args.cohesion,
         "relaxation": args.relaxation,
         "fluid_warm_start": args.warm_start,
+        "fluid_density_ramp": args.density_ramp,
         "fluid_max_iterations": args.density_iterations,
         "fluid_density_tolerance": args.density_tolerance,
         "density_subiterations_per_substep": solver.fluid_diagnostics(states[0])["density_subiterations"]
@@ -367,6 +369,7 @@ def main(argv=None):
     parser.add_argument("--cohesion", type=float, default=1.0)
     parser.add_argument("--relaxation", type=float, default=1.0)
     parser.add_argument("--warm-start", type=float, default=0.0, help="fluid_warm_start")
+    parser.add_argument("--density-ramp", type=float, default=0.0, help="fluid_density_ramp")
     parser.add_argument("--density-iterations", type=int, default=1, help="fluid_max_iterations")
     parser.add_argument("--density-tolerance", type=float, default=0.0, help="fluid_density_tolerance")
     parser.add_argument("--viscosity", type=float, default=0.05)

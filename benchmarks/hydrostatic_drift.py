@@ -62,6 +62,7 @@ def main(argv=None):
     parser.add_argument("--relaxation", type=float, default=1.0, help="fluid_relaxation")
     parser.add_argument("--smoothing", type=float, default=1.8, help="smoothing length over the spacing")
     parser.add_argument("--warm-start", type=float, default=0.0, help="fluid_warm_start")
+    parser.add_argument("--density-ramp", type=float, default=0.0, help="fluid_density_ramp")
     parser.add_argument(
         "--packing",
         choices=("cubic", "staggered"),
@@ -101,6 +102,7 @@ def main(argv=None):
         fluid_relaxation=args.relaxation,
         fluid_smoothing_length=args.smoothing * D,
         fluid_warm_start=args.warm_start,
+        fluid_density_ramp=args.density_ramp,
     )
     # contacts out to one diameter from the surface, so the particles see the walls' density
     pipeline = newton.CollisionPipeline(model, soft_contact_gap=0.5 * D)
@@ -183,6 +185,7 @@ def main(argv=None):
         "cohesion": args.cohesion,
         "relaxation": args.relaxation,
         "warm_start": args.warm_start,
+        "fluid_density_ramp": args.density_ramp,
         "smoothing_over_spacing": args.smoothing,
         "settle_s": args.settle,
         "start_max_compression": start["max_compression"],

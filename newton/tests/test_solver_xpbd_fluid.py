@@ -14,6 +14,7 @@ from newton._src.solvers.xpbd.fluid.kernels import (
     WALL_CONTACTS_PER_SLOT,
     FluidParams,
     FluidSlots,
+    density_constraint_lambda,
     fluid_neighbor,
     fluid_neighbor_layout,
     fluid_wall_share,
@@ -214,6 +215,38 @@ def test_hydrostatic_column_stays_at_rest(test, device):
     test.assertLess(np.abs(rho_layers - 1.0).max(), 0.005)
     test.assertGreater(rho_layers[:3].mean(), rho_layers[5:8].mean())
     test.assertLess(lam_layers[:3].mean(), 2.0 * lam_layers[5:8].mean())  # multipliers are <= 0
+
+
+@wp.kernel
+def evaluate_density_lambda(params: wp.array[FluidParams], rho: wp.array[float], out: wp.array[float]):
+    i = wp.tid()
+    out[i] = density_constraint_lambda(rho[i], wp.vec3(0.0), 1.0, params[0])
+
+
+def test_density_ramp_is_smooth(test, device):
+    # lambda is -psi(c) / (1 + epsilon) with the ramp psi: c^2 / (2 d) below d, c - d / 2 above, 0 below rest
+    sim = Sim(make_model(device, lambda b: add_block(b, (2, 2, 2))))
+    fluid = sim.solver._fluid
+    d = 0.002
+    c = np.linspace(-0.01, 0.01, 2001)
+    rho = wp.array((1.0 + c) * fluid.rest_density, dtype=float, device=device)
+
+    def psi():
+        out = wp.zeros(len(c), dtype=float, device=device)
+        wp.launch(evaluate_density_lambda, dim=len(c), inputs=[fluid.params, rho], outputs=[out], device=device)
+        epsilon = float(fluid.params.numpy()[0]["epsilon"])
+        return -out.numpy() * (1.0 + epsilon)
+
+    off = psi()
+    np.testing.assert_allclose(off, np.maximum(c, 0.0), atol=1.0e-6)
+    sim.solver.fluid_density_ramp = d  # on the device: no new solver, no new graph
+    ramp = psi()
+    np.testing.assert_allclose(ramp, np.where(c < d, np.maximum(c, 0.0) ** 2 / (2.0 * d), c - 0.5 * d), atol=1.0e-6)
+    # continuous with its slope at both ends of the ramp (samples 1e-5 apart; float32 rounding ~2e-7 in
+    # the second difference), where the plain constraint's slope jumps from 0 to 1 at rest density
+    test.assertLess(np.abs(np.diff(ramp)).max(), 1.05e-5)
+    test.assertLess(np.abs(np.diff(ramp, 2)).max(), 1.0e-6)
+    test.assertGreater(np.abs(np.diff(off, 2)).max(), 5.0e-6)
 
 
 def test_cohesion_leaves_a_resting_column_quiet(test, device):

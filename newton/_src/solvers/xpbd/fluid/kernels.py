@@ -64,6 +64,7 @@ class FluidParams:
     rest_distance: float  # [m]
     epsilon: float  # regulariser of the lambda denominator [1/m^2]
     relaxation: float
+    density_ramp: float  # compression over which the density constraint ramps in (0: it switches on at rest density)
     max_correction: float  # bound of one iteration's density correction [m]
     max_displacement: float  # bound of a fluid particle's travel in one substep [m]
     cohesion: float  # per-iteration cohesion displacement scale [m]
@@ -133,8 +134,19 @@ def spiky_gradient(r: wp.vec3, r2: float, pi: int, sorted_particle: wp.array[wp.
 
 @wp.func
 def density_constraint_lambda(rho: float, grad_i: wp.vec3, grad_sq: float, p: FluidParams):
-    """Jacobi multiplier of the unilateral density constraint ``C = max(rho / rho0 - 1, 0)``."""
+    """Jacobi multiplier of the unilateral density constraint ``C = max(rho / rho0 - 1, 0)``.
+
+    With ``density_ramp`` d > 0 the multiplier is that of ``C^2 / (2 d)`` below d and of ``C - d / 2``
+    above (continuous, and so is its slope): particles near rest density, which switch a constraint
+    with a kink on and off from substep to substep, take it in gradually, and fluid at rest stops
+    humming, for d / 2 more compression where it carries a load (docs/validation.md, "Hydrostatics").
+    """
     c = wp.max(rho * p.inv_rest_density - 1.0, 0.0)
+    d = p.density_ramp
+    if c < d:
+        c = c * c / (2.0 * d)
+    else:
+        c = c - 0.5 * d
     return -c / (grad_sq + wp.dot(grad_i, grad_i) + p.epsilon)
 
 

@@ -61,6 +61,8 @@ from .render_particles import compute_fluid_render_particles, reset_render_parti
 DEFAULT_SMOOTHING_RATIO = 1.8
 # one iteration moves a particle by at most this fraction of the rest distance
 MAX_CORRECTION_FRACTION = 0.5
+# largest fluid_density_ramp: a ramp over 1 % compression would hold every loaded particle 0.5 % more compressed
+MAX_DENSITY_RAMP = 0.01
 # lambda regulariser relative to sum |grad C|^2 of the rest lattice (constraint softening ~1e-3)
 EPSILON_RELATIVE = 1.0e-3
 # cohesion 1 moves a surface particle by at most ~this fraction of the rest distance per iteration
@@ -106,6 +108,7 @@ class FluidConfig:
     fluid_viscosity: float = 0.0
     fluid_vorticity: float = 0.0
     fluid_relaxation: float = 1.0
+    fluid_density_ramp: float = 0.0
     fluid_max_neighbors: int = 0
     fluid_density_tolerance: float = 0.0
     fluid_max_iterations: int = 1
@@ -120,6 +123,7 @@ class FluidConfig:
         "fluid_viscosity",
         "fluid_vorticity",
         "fluid_relaxation",
+        "fluid_density_ramp",
         "fluid_density_tolerance",
         "fluid_max_displacement",
         "fluid_warm_start",
@@ -160,6 +164,8 @@ class FluidConfig:
             v = _real(name, value, 0.0, 1.0, hi_open=True)
         elif name == "fluid_relaxation":
             v = _real(name, value, 0.0, 2.0, lo_open=True)
+        elif name == "fluid_density_ramp":
+            v = _real(name, value, 0.0, MAX_DENSITY_RAMP)
         else:
             raise AttributeError(f"{name} cannot be changed after the solver is created")
         setattr(self, name, v)
@@ -401,6 +407,7 @@ class FluidSolver:
         scale = self.lattice_density / self.rest_density
         p.epsilon = EPSILON_RELATIVE * self.rest_grad_sq * scale * scale
         p.relaxation = c.fluid_relaxation
+        p.density_ramp = c.fluid_density_ramp
         p.max_correction = MAX_CORRECTION_FRACTION * d
         p.max_displacement = min(c.fluid_max_displacement * d, MAX_DISPLACEMENT_OFF)
         p.cohesion = c.fluid_cohesion * COHESION_DISPLACEMENT * d
