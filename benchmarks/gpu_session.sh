@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/performance.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|ncu|variants|tolerance|tolerance-small|tolerance-chart|accuracy|surge|diffuse|render|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|surge|diffuse|render|gallery|gltests|tests]...
 set -u
 out=${1:?output folder}; shift
 export PYTHONUNBUFFERED=1
@@ -54,7 +54,15 @@ for what in "$@"; do
       $sa --iterations --max-iterations 1 --subpasses 16 --tolerances 0.0025 \
         --json "$out/speed_accuracy_100k_subpasses_i1_tolerance_0.0025_h100.json"
       $sa --iterations --max-iterations 8 --tolerances 0.02 0.01 0.005 \
-        --json "$out/speed_accuracy_100k_iteration_tolerance_h100.json" ;;
+        --json "$out/speed_accuracy_100k_iteration_tolerance_h100.json"
+      $sa --iterations --max-iterations 2 --subpasses 4 --tolerances 0.02 0.01 0.005 \
+        --json "$out/speed_accuracy_100k_subpasses_i2_h100.json" ;;
+    tolerance-i2)
+      # two XPBD iterations with sub-passes against the fixed counts, one session
+      sa="python3 -W ignore benchmarks/speed_accuracy.py --per-l 40 --depth 31 --sample-every 6 --substeps 8"
+      $sa --iterations 2 3 4 6 8 --tolerances --json "$out/speed_accuracy_100k_fixed_8_substeps_i2_session_h100.json"
+      $sa --iterations --max-iterations 2 --subpasses 4 --tolerances 0.02 0.01 0.005 \
+        --json "$out/speed_accuracy_100k_subpasses_i2_h100.json" ;;
     surge)
       # the surge front at finer resolutions than the CPU runs of docs/validation.md
       python3 benchmarks/validate_dam_break.py --resolutions 40 60 80 --json "$out/koshizuka_oka_h100.json" 2>&1 | grep -v '^Module' ;;
