@@ -916,6 +916,18 @@ def test_tolerance_stops_xpbd_iterations(test, device):
     with test.assertRaisesRegex(ValueError, "fluid_density_tolerance=0.01"):
         plain.solver.fluid_density_tolerance = 0.01
     sim.solver.fluid_density_tolerance = 0.05  # a solver created with it may change it
+    # changed to 0, the XPBD iterations do not stop early, even where nothing is compressed (their
+    # passes still apply cohesion): every iteration's pass corrects
+    sparse = Sim(
+        make_model(device, lambda b: add_block(b, (4, 4, 4), spacing=1.1 * D)),
+        substeps=1,
+        iterations=4,
+        fluid_density_tolerance=0.02,
+    )
+    sparse.solver.fluid_density_tolerance = 0.0
+    sparse.step(1)
+    test.assertEqual(sparse.solver.fluid_diagnostics(sparse.state_0)["max_compression"], 0.0)
+    test.assertEqual(sparse.solver.fluid_diagnostics(sparse.state_0)["density_subiterations"], 4)
 
 
 def warm_start_column(device, warm_start):

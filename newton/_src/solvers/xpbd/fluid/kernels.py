@@ -855,10 +855,28 @@ def take_compression(bins: wp.array[float]):
     return wp.vec2(total, count)
 
 
+@wp.func
+def compression_within_tolerance(sums: wp.vec2, tolerance: float, stop_uncompressed: int):
+    """Whether a pass's mean compression (``sums`` from :func:`take_compression`) lets the passes stop.
+
+    Nothing evaluated always stops. A tolerance of 0 stops only where nothing is compressed, and
+    only with ``stop_uncompressed`` (the passes within an XPBD iteration); on the XPBD iterations
+    0 means no early stop.
+    """
+    total = sums[0]
+    count = sums[1]
+    if count == 0.0:
+        return True
+    if tolerance > 0.0 or stop_uncompressed != 0:
+        return total <= tolerance * count
+    return False
+
+
 @wp.kernel
 def decide_after_first_fluid_pass(
     params: wp.array[FluidParams],
     more: int,
+    stop_uncompressed: int,
     # in/out
     bins: wp.array[float],
     go_on: wp.array[wp.int32],
@@ -870,8 +888,8 @@ def decide_after_first_fluid_pass(
     The first pass of a substep (of each XPBD iteration with sub-passes) corrects whatever the
     tolerance says: the mean counts the under-dense surface as 0, so a small or splashing fluid meets
     any tolerance while some of its particles are compressed. Passes follow while its mean
-    compression, measured before its correction, is above the tolerance (anything compressed with no
-    tolerance) and ``more`` passes are allowed. Counts the first pass, opens the loop's count, and
+    compression, measured before its correction, is not within the tolerance (the rule of the later
+    passes' decisions: :func:`compression_within_tolerance`) and ``more`` passes are allowed. Counts the first pass, opens the loop's count, and
     reads and clears the pass's compression sums. One block of ``COMPRESSION_BINS`` threads.
     """
     _, lane = wp.tid()
@@ -880,9 +898,7 @@ def decide_after_first_fluid_pass(
         return
     iterations_total[0] = iterations_total[0] + 1
     loop_count[0] = 0
-    total = sums[0]
-    count = sums[1]
-    if more > 0 and count > 0.0 and total > params[0].density_tolerance * count:
+    if more > 0 and not compression_within_tolerance(sums, params[0].density_tolerance, stop_uncompressed):
         go_on[0] = 1
     else:
         go_on[0] = 0
@@ -915,9 +931,7 @@ def decide_fluid_subiteration(
     sums = take_compression(bins)
     if lane != 0:
         return
-    total = sums[0]
-    count = sums[1]
-    if count == 0.0 or total <= params[0].density_tolerance * count:
+    if compression_within_tolerance(sums, params[0].density_tolerance, 1):
         correct[0] = 0
         loop_active[0] = 0
         return
@@ -947,10 +961,7 @@ def decide_fluid_density_converged(
     sums = take_compression(bins)
     if lane != 0:
         return
-    total = sums[0]
-    count = sums[1]
-    tolerance = params[0].density_tolerance
-    if count == 0.0 or (tolerance > 0.0 and total <= tolerance * count):
+    if compression_within_tolerance(sums, params[0].density_tolerance, 0):
         active[0] = 0
         return
     iterations_total[0] = iterations_total[0] + 1

@@ -529,7 +529,7 @@ class FluidSolver:
             if self.iteration_tolerance:
                 if first:
                     # corrects below whatever it measured; decides whether the later iterations do
-                    self._decide_after_first_pass(self._substep_active, 1)
+                    self._decide_after_first_pass(self._substep_active, 1, stop_uncompressed=False)
                 else:
                     wp.launch_tiled(
                         decide_fluid_density_converged,
@@ -550,7 +550,7 @@ class FluidSolver:
         # the iteration's first pass corrects; it writes its moved positions into the other position
         # buffer, where the loop's passes go on (while it measured the mean compression above the tolerance)
         self._evaluate_constraint(self._always_active, track_compression=True)
-        self._decide_after_first_pass(self._loop_active, self.config.fluid_max_iterations - 1)
+        self._decide_after_first_pass(self._loop_active, self.config.fluid_max_iterations - 1, stop_uncompressed=True)
         self._correct(particle_deltas, self._always_active, advance=True)
         self._current = 1 - self._current
         if self.device.is_capturing or self.device.is_cpu:
@@ -562,12 +562,12 @@ class FluidSolver:
             for _ in range(self.config.fluid_max_iterations // 2):
                 self._density_subiteration_pair(particle_deltas)
 
-    def _decide_after_first_pass(self, go_on: wp.array, more: int) -> None:
+    def _decide_after_first_pass(self, go_on: wp.array, more: int, stop_uncompressed: bool) -> None:
         wp.launch_tiled(
             decide_after_first_fluid_pass,
             dim=1,
             block_dim=COMPRESSION_BINS,
-            inputs=[self.params, more],
+            inputs=[self.params, more, int(stop_uncompressed)],
             outputs=[self._compression_bins, go_on, self._loop_count, self.subiterations_total],
             device=self.device,
         )
