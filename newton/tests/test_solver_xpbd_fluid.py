@@ -158,7 +158,9 @@ def test_applied_positions_match_a_gather(test, device):
         fluid = sim.solver._fluid
         if not applied:
             solve = fluid.solve_density
-            fluid.solve_density = lambda q, deltas, apply=None, solve=solve: solve(q, deltas, None)
+            fluid.solve_density = lambda q, deltas, apply=None, iterations=0, solve=solve: solve(
+                q, deltas, None, iterations
+            )
         sim.step(6)
         test.assertEqual(fluid._positions_applied, applied)
         test.assertEqual(fluid._velocities_applied, applied)
@@ -1014,6 +1016,30 @@ def test_warm_start_change_takes_effect(test, device):
     eager = Sim(block(), fluid_warm_start=0.5)
     eager.step(1)
     np.testing.assert_allclose(eager.q(), result[0.5][0], atol=1.0e-5)
+
+
+def test_warm_start_kept_by_the_last_correction(test, device):
+    """The multipliers carried to the next substep: kept by the last correction pass with fixed counts,
+    by a pass after the step in the tolerance modes (the same values), and none for a left-out particle."""
+
+    def run(**kwargs):
+        model = make_model(device, lambda b: add_block(b, (6, 6, 6), spacing=0.9 * D, jitter=0.05 * D), gravity=-9.81)
+        flags = model.particle_flags.numpy()
+        flags[0] = int(newton.ParticleFlags.FLUID)  # inactive: left out of the solve
+        model.particle_flags.assign(flags)
+        sim = Sim(model, fluid_warm_start=0.5, **kwargs)
+        sim.solver._fluid.particle_lambda.fill_(3.0)
+        sim.step(2)
+        return sim.q(), sim.solver._fluid.particle_lambda.numpy()
+
+    q_fixed, lam_fixed = run()
+    # a tolerance no substep meets runs every iteration, as the fixed count does
+    q_tol, lam_tol = run(fluid_density_tolerance=1.0e-9)
+    test.assertEqual(lam_fixed[0], 0.0)
+    test.assertEqual(lam_tol[0], 0.0)
+    test.assertGreater(np.count_nonzero(lam_fixed), 50)  # the compressed block carries multipliers
+    np.testing.assert_allclose(lam_fixed, lam_tol, rtol=1.0e-5, atol=1.0e-9)
+    np.testing.assert_allclose(q_fixed, q_tol, atol=1.0e-6)
 
 
 def test_no_fluid_adds_no_work(test, device):

@@ -217,7 +217,7 @@ def activate(xpbd_module) -> None:
             if x_start is not None and not state_in.requires_grad:
                 velocities = not getattr(self, "enable_restitution", True)
                 apply = (x_start, dt, model.particle_max_velocity, velocities)
-            self._fluid.solve_density(particle_q, particle_deltas, apply)
+            self._fluid.solve_density(particle_q, particle_deltas, apply, self.iterations)
         return upstream_apply(self, model, state_in, state_out, particle_deltas, dt)
 
     @functools.wraps(upstream_step)

@@ -532,18 +532,21 @@ def apply_fluid_density_correction(
     particle_inv_mass: wp.array[float],
     wall_grad: wp.array[wp.vec3],
     apply: ParticleApply,
+    store_warm: int,
     # outputs
     particle_deltas: wp.array[wp.vec3],
-    slot_dx: wp.array[wp.vec3],
     lambda_sum: wp.array[float],
+    particle_lambda: wp.array[float],
 ):
     """Add the density correction and the cohesion bias of slot ``i`` to its particle's Jacobi delta.
 
     Each pair takes the share of the cohesion :func:`cohesion_weight` gives it.
 
-    The correction is also written to ``slot_dx`` (for density sub-iterations). ``wall_grad`` is the
-    walls' gradient of the density pass before it. With ``apply.on``, the corrected position goes to
-    ``apply.xm`` (see :class:`ParticleApply`).
+    ``wall_grad`` is the walls' gradient of the density pass before it. With ``apply.on``, the
+    corrected position goes to ``apply.xm`` (see :class:`ParticleApply`). With the warm start, the
+    multiplier is added to the substep's sum ``lambda_sum``; with ``store_warm`` (the substep's last
+    correction), ``warm_start`` times that sum is kept in ``particle_lambda`` for the next substep
+    (as :func:`store_fluid_warm_start` does, without a pass of its own).
     """
     i = wp.tid()
     pi = slots.particle[i]
@@ -551,7 +554,8 @@ def apply_fluid_density_correction(
         return
     xi4 = slots.xm[i]
     if particle_inv_mass[pi] == 0.0:
-        slot_dx[i] = wp.vec3(0.0)
+        if store_warm != 0 and params[0].warm_start > 0.0:
+            particle_lambda[pi] = params[0].warm_start * lambda_sum[i]
         if apply.on == APPLY_AS_XPBD:
             x, v = applied_particle(apply, pi, particle_deltas[pi])
             apply.xm[i] = wp.vec4(x[0], x[1], x[2], xi4[3])
@@ -597,34 +601,17 @@ def apply_fluid_density_correction(
         dx += coh
     delta = particle_deltas[pi] + dx
     particle_deltas[pi] = delta
-    slot_dx[i] = dx
     if p.warm_start > 0.0:
-        lambda_sum[i] = lambda_sum[i] + lam_i
+        lam_sum = lambda_sum[i] + lam_i
+        lambda_sum[i] = lam_sum
+        if store_warm != 0:
+            particle_lambda[pi] = p.warm_start * lam_sum
     if apply.on == APPLY_AS_XPBD:
         x, v = applied_particle(apply, pi, delta)
         apply.xm[i] = wp.vec4(x[0], x[1], x[2], xi4[3])
         apply.v[i] = v
     elif apply.on == APPLY_ADVANCE:
         apply.xm[i] = wp.vec4(xi4[0] + dx[0], xi4[1] + dx[1], xi4[2] + dx[2], xi4[3])
-
-
-@wp.kernel
-def gather_fluid_warm_start(
-    params: wp.array[FluidParams],
-    slots: FluidSlots,
-    particle_lambda: wp.array[float],
-    # outputs
-    warm_lambda: wp.array[float],
-    lambda_sum: wp.array[float],
-):
-    """Gather the multipliers each fluid particle carries from the last substep into slot order."""
-    i = wp.tid()
-    pi = slots.particle[i]
-    if pi < 0 or params[0].warm_start <= 0.0:
-        return
-    lam = particle_lambda[pi]
-    warm_lambda[i] = lam
-    lambda_sum[i] = lam
 
 
 @wp.kernel
@@ -638,25 +625,30 @@ def apply_fluid_warm_start(
     wall_table_grad: wp.array[float],
     # outputs
     particle_deltas: wp.array[wp.vec3],
-    slot_dx: wp.array[wp.vec3],
+    moved_xm: wp.array[wp.vec4],
+    lambda_sum: wp.array[float],
 ):
     """Start the substep's density solve from the multipliers of the last one (warm start).
 
-    Moves slot ``i`` by the correction of the carried multipliers (as
+    Moves slot ``i`` by the correction of the carried multipliers ``warm_lambda`` (gathered into slot
+    order by the sort, :meth:`~.neighbors.FluidNeighborSearch.carry_values`; as
     :func:`apply_fluid_density_correction` does with fresh ones, without cohesion) before the first
-    density evaluation: a load the fluid carried last substep, like the weight of a deep column, is
-    already held when the iterations start, which then only correct what changed.
+    density evaluation, writing the moved position to ``moved_xm`` (the other position buffer: the
+    neighbours' positions are read from ``slots.xm`` meanwhile): a load the fluid carried last
+    substep, like the weight of a deep column, is already held when the iterations start, which then
+    only correct what changed. Starts the substep's sum of multipliers from the carried one.
     """
     i = wp.tid()
     pi = slots.particle[i]
     if pi < 0:
         return
-    slot_dx[i] = wp.vec3(0.0)
-    p = params[0]
-    if active[0] == 0 or p.warm_start <= 0.0 or particle_inv_mass[pi] == 0.0:
-        return
     xi4 = slots.xm[i]
     lam_i = warm_lambda[i]
+    lambda_sum[i] = lam_i
+    p = params[0]
+    if active[0] == 0 or p.warm_start <= 0.0 or particle_inv_mass[pi] == 0.0:
+        moved_xm[i] = xi4
+        return
     xi = wp.vec3(xi4[0], xi4[1], xi4[2])
     wall = fluid_wall_share(slots, i, xi, p, wall_table, wall_table_grad)
     dx = wp.vec3(wall[0], wall[1], wall[2]) * lam_i
@@ -668,22 +660,22 @@ def apply_fluid_warm_start(
         dx += wp.spatial_top(correction_term(xi4, lam_i, slots.xm[j], warm_lambda[j], pi, slots.particle, j, p, 0.0))
     dx = relaxed_correction(dx, p)
     particle_deltas[pi] = particle_deltas[pi] + dx
-    slot_dx[i] = dx
+    moved_xm[i] = wp.vec4(xi[0] + dx[0], xi[1] + dx[1], xi[2] + dx[2], xi4[3])
 
 
 @wp.kernel
 def store_fluid_warm_start(
     params: wp.array[FluidParams],
     slots: FluidSlots,
-    slot_fluid_index: wp.array[wp.int32],
-    fluid_particle: wp.array[wp.int32],
     lambda_sum: wp.array[float],
     # outputs
     particle_lambda: wp.array[float],
 ):
     """Keep ``warm_start`` times each particle's multipliers of this substep for the next one.
 
-    A particle left out of this substep's solve (inactive, non-finite) carries nothing.
+    For the tolerance modes, whose last correction is decided on the device; with fixed counts the
+    last correction pass stores them itself. A particle left out of this substep's solve (inactive,
+    non-finite) carries nothing: the sort set its value to 0.
     """
     i = wp.tid()
     p = params[0]
@@ -691,7 +683,6 @@ def store_fluid_warm_start(
         return
     pi = slots.particle[i]
     if pi < 0:
-        particle_lambda[fluid_particle[slot_fluid_index[i]]] = 0.0
         return
     particle_lambda[pi] = p.warm_start * lambda_sum[i]
 
@@ -965,17 +956,6 @@ def decide_fluid_density_converged(
         active[0] = 0
         return
     iterations_total[0] = iterations_total[0] + 1
-
-
-@wp.kernel
-def advance_fluid_slots(slots: FluidSlots, active: wp.array[wp.int32], slot_dx: wp.array[wp.vec3]):
-    """Move the gathered positions by this sub-iteration's correction (the next one starts from there)."""
-    i = wp.tid()
-    if slots.particle[i] < 0 or active[0] == 0:
-        return
-    x = slots.xm[i]
-    d = slot_dx[i]
-    slots.xm[i] = wp.vec4(x[0] + d[0], x[1] + d[1], x[2] + d[2], x[3])
 
 
 @wp.kernel

@@ -183,6 +183,8 @@ def order_fluid_cells(
     particle_mass: wp.array[float],
     particle_world: wp.array[wp.int32],
     mask: int,
+    # in/out
+    carry: wp.array[float],
     # outputs
     values: wp.array[wp.int32],
     sorted_particle: wp.array[wp.int32],
@@ -190,6 +192,7 @@ def order_fluid_cells(
     sorted_world: wp.array[wp.int32],
     slot_of_particle: wp.array[wp.int32],
     wall_count: wp.array[wp.int32],
+    carried: wp.array[float],
 ):
     """Put each cell's slots in fluid-index order and gather the particles into them.
 
@@ -200,6 +203,9 @@ def order_fluid_cells(
     is cleared. The left-out particles' entry is not ordered: they take no part in the solve, and a
     large pool of them (a scene that keeps inactive fluid particles in reserve) would cost time
     quadratic in its size.
+
+    A value each particle carries from the last substep (``carry``, per particle; empty: none) is
+    gathered into ``carried`` with the rest; a left-out particle's is set to 0 (it carries nothing).
     """
     i = wp.tid()
     key = keys[i]
@@ -218,12 +224,16 @@ def order_fluid_cells(
         sorted_particle[place] = -1
         sorted_world[place] = _NO_WORLD
         slot_of_particle[pi] = -1
+        if carry.shape[0] > 0:
+            carry[pi] = 0.0
         return
     x = particle_q[pi]
     sorted_particle[place] = pi
     slot_of_particle[pi] = place
     sorted_xm[place] = wp.vec4(x[0], x[1], x[2], particle_mass[pi])
     sorted_world[place] = particle_world[pi]
+    if carry.shape[0] > 0:
+        carried[place] = carry[pi]
 
 
 @wp.kernel
@@ -459,6 +469,18 @@ class FluidNeighborSearch:
         self.no_walls = FluidWallContacts()
         self.no_walls.count = wp.zeros(1, dtype=int, device=device)
         self.no_walls.contact_max = 0
+        # a value per particle that the sort gathers into slot order (see :meth:`carry_values`)
+        self.carry = wp.zeros(0, dtype=float, device=device)
+        self.carried = self.carry
+
+    def carry_values(self, per_particle: wp.array, per_slot: wp.array) -> None:
+        """Let every build gather ``per_particle`` (one float per particle) into ``per_slot`` (slot order).
+
+        The sort's gather does it, so a value carried between substeps (the warm start's multipliers)
+        costs no pass of its own; a particle left out of the build has its value set to 0.
+        """
+        self.carry = per_particle
+        self.carried = per_slot
 
     def build(
         self,
@@ -542,6 +564,7 @@ class FluidNeighborSearch:
                 particle_mass,
                 particle_world,
                 self.mask,
+                self.carry,
             ],
             outputs=[
                 self.values,
@@ -550,6 +573,7 @@ class FluidNeighborSearch:
                 self.sorted_world,
                 self.slot_of_particle,
                 self.wall_count,
+                self.carried,
             ],
             device=device,
         )

@@ -39,7 +39,6 @@ from .kernels import (
     FluidSlots,
     FluidWallContacts,
     ParticleApply,
-    advance_fluid_slots,
     apply_fluid_density_correction,
     apply_fluid_viscosity,
     apply_fluid_warm_start,
@@ -50,7 +49,6 @@ from .kernels import (
     decide_fluid_subiteration,
     gather_fluid_positions,
     gather_fluid_state,
-    gather_fluid_warm_start,
     recover_nonfinite_fluid,
     store_fluid_warm_start,
 )
@@ -308,20 +306,22 @@ class FluidSolver:
             # SolverXPBD applies its deltas writes the applied positions there for the next pass
             self.xm_applied = wp.zeros(n, dtype=wp.vec4)
             self.vorticity = wp.zeros(n, dtype=wp.vec3)
-            self.slot_dx = wp.zeros(n, dtype=wp.vec3)
-            # warm start: multipliers carried per particle between substeps, their slot-order copy and
-            # the substep's running sum per slot
-            self.particle_lambda = wp.zeros(model.particle_count, dtype=float)
-            self.warm_lambda = wp.zeros(n, dtype=float)
-            self.lambda_sum = wp.zeros(n, dtype=float)
+            # the warm-start passes exist only on a solver created with it (a scene without it pays nothing)
+            self.warm_start_mode = config.fluid_warm_start > 0.0
+            # warm start: multipliers carried per particle between substeps, their slot-order copy
+            # (gathered by the sort) and the substep's running sum per slot
+            warm = self.warm_start_mode
+            self.particle_lambda = wp.zeros(model.particle_count if warm else 0, dtype=float)
+            self.warm_lambda = wp.zeros(n if warm else 0, dtype=float)
+            self.lambda_sum = wp.zeros(n if warm else 0, dtype=float)
+            if warm:
+                self.search.carry_values(self.particle_lambda, self.warm_lambda)
             # state of the density sub-iteration loop: an "always on" flag for the single pass,
             # and the loop's flag, correction count, compression bins and a total for diagnostics
             self._always_active = wp.ones(1, dtype=wp.int32)
             # tolerance mode with one pass per iteration: cleared once a substep's density has converged
             self._substep_active = wp.ones(1, dtype=wp.int32)
             self.tolerance_mode = config.fluid_max_iterations > 1 or config.fluid_density_tolerance > 0.0
-            # the warm-start passes exist only on a solver created with it (a scene without it pays nothing)
-            self.warm_start_mode = config.fluid_warm_start > 0.0
             self._loop_active = wp.zeros(1, dtype=wp.int32)
             self._loop_count = wp.zeros(1, dtype=wp.int32)
             self._pass_corrects = wp.zeros(1, dtype=wp.int32)
@@ -357,6 +357,8 @@ class FluidSolver:
             advance.xm = self._slot_views[target].xm
             self._apply_advance.append(advance)
         self._current = 0
+        self._iteration = 0
+        self._warm_stored = False
         # the current slots hold the particles' positions (and sorted_v their velocities) as SolverXPBD
         # last applied them, so no gather is needed
         self._positions_applied = False
@@ -474,6 +476,8 @@ class FluidSolver:
         )
         # the build gathered these positions into slot order: the first iteration uses them as they are
         self._slots_hold_positions = True
+        self._iteration = 0
+        self._warm_stored = False
         self._current = 0
         self._positions_applied = False
         self._velocities_applied = False
@@ -483,7 +487,9 @@ class FluidSolver:
         """The slots with the current position buffer (see :meth:`solve_density`)."""
         return self._slot_views[self._current]
 
-    def solve_density(self, particle_q: wp.array, particle_deltas: wp.array, apply: tuple | None = None) -> None:
+    def solve_density(
+        self, particle_q: wp.array, particle_deltas: wp.array, apply: tuple | None = None, iterations: int = 0
+    ) -> None:
         """The density constraint of one XPBD iteration: add its correction to ``particle_deltas``.
 
         ``apply`` = ``(x_start, dt, v_max, velocities)`` says how ``SolverXPBD`` applies the deltas
@@ -503,7 +509,9 @@ class FluidSolver:
         device: inside a graph capture the loop is a conditional while node; on a GPU outside one
         every allowed pass is launched and the passes after the decision do nothing (no
         synchronisation); on the CPU the loop reads its flag and stops. With ``fluid_warm_start``, the
-        substep's first iteration first moves the fluid by the multipliers carried from the last one.
+        substep's first iteration first moves the fluid by the multipliers carried from the last one,
+        and with fixed counts the correction of iteration ``iterations`` (the substep's last; 0:
+        unknown) keeps the multipliers for the next substep (else a pass after the step does).
         """
         m, n = self.model, self.fluid_count
         # the substep's first iteration starts from the positions the build gathered; its first density
@@ -518,6 +526,7 @@ class FluidSolver:
                 inputs=[self.slots, active, particle_q, m.particle_mass],
                 device=self.device,
             )
+        self._iteration += 1
         if self._slots_hold_positions and self._warm_start_on():
             self._warm_start(particle_deltas, active)
         # after this iteration's correction, the slots' positions are out of date (unless it writes the applied ones)
@@ -541,7 +550,10 @@ class FluidSolver:
                     )
             # (a pass that may be skipped writes no applied positions)
             predict = apply is not None and active is self._always_active
-            self._correct(particle_deltas, active, particle_q if predict else None, apply)
+            # (the tolerance modes decide the last correction on the device: a pass after the step stores)
+            store = self._warm_start_on() and not self.tolerance_mode and self._iteration == iterations
+            self._correct(particle_deltas, active, particle_q if predict else None, apply, store_warm=store)
+            self._warm_stored = self._warm_stored or store
             if predict:
                 self._current = 1 - self._current
                 self._positions_applied = True
@@ -606,15 +618,11 @@ class FluidSolver:
         return self.warm_start_mode and (self.device.is_capturing or self.config.fluid_warm_start > 0.0)
 
     def _warm_start(self, particle_deltas: wp.array, active: wp.array) -> None:
-        """Move the fluid by the multipliers carried from the last substep before its first evaluation."""
+        """Move the fluid by the multipliers carried from the last substep before its first evaluation.
+
+        The sort gathered them into slot order; the moved positions go to the other position buffer.
+        """
         m, n = self.model, self.fluid_count
-        wp.launch(
-            gather_fluid_warm_start,
-            dim=n,
-            inputs=[self.params, self.slots, self.particle_lambda],
-            outputs=[self.warm_lambda, self.lambda_sum],
-            device=self.device,
-        )
         wp.launch(
             apply_fluid_warm_start,
             dim=n,
@@ -627,10 +635,10 @@ class FluidSolver:
                 self.wall_table,
                 self.wall_table_grad,
             ],
-            outputs=[particle_deltas, self.slot_dx],
+            outputs=[particle_deltas, self._slot_views[1 - self._current].xm, self.lambda_sum],
             device=self.device,
         )
-        wp.launch(advance_fluid_slots, dim=n, inputs=[self.slots, active, self.slot_dx], device=self.device)
+        self._current = 1 - self._current
 
     def _correct(
         self,
@@ -639,6 +647,7 @@ class FluidSolver:
         x_pred: wp.array | None = None,
         apply: tuple | None = None,
         advance: bool = False,
+        store_warm: bool = False,
     ) -> None:
         m = self.model
         applied = self._apply_off
@@ -663,8 +672,9 @@ class FluidSolver:
                 m.particle_inv_mass,
                 self.wall_grad,
                 applied,
+                int(store_warm),
             ],
-            outputs=[particle_deltas, self.slot_dx, self.lambda_sum],
+            outputs=[particle_deltas, self.lambda_sum, self.particle_lambda],
             device=self.device,
         )
 
@@ -689,15 +699,15 @@ class FluidSolver:
         the vorticity pass is not launched).
         """
         c = self.config
-        if self._warm_start_on():
-            s = self.search
+        if self._warm_start_on() and not self._warm_stored:
             wp.launch(
                 store_fluid_warm_start,
                 dim=self.fluid_count,
-                inputs=[self.params, s.slots, s.values, self.fluid_particle, self.lambda_sum],
+                inputs=[self.params, self.search.slots, self.lambda_sum],
                 outputs=[self.particle_lambda],
                 device=self.device,
             )
+        self._warm_stored = False
         if self.device.is_capturing:
             self._velocity_pass(state_out)
             self._vorticity_pass(state_out, dt)
