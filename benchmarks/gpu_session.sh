@@ -5,6 +5,9 @@ set -u
 out=${1:?output folder}; shift
 export PYTHONUNBUFFERED=1
 nvidia-smi --query-gpu=name,driver_version,clocks.sm,clocks.max.sm --format=csv | tee "$out/gpu.txt"
+# the GPU's model in the names of the files written (h100, h200, ...; "gpu" if not recognised)
+gpu=$(nvidia-smi --query-gpu=name --format=csv,noheader | head -1 | grep -oiE '[a-z]?[0-9]{2,4}[a-z]*' | head -1 | tr 'A-Z' 'a-z')
+gpu=${gpu:-gpu}
 for what in "$@"; do
   case $what in
     bench)
@@ -29,10 +32,10 @@ for what in "$@"; do
       # the tolerance on a small splash (1,001 particles), against one fixed iteration (docs/validation.md)
       for t in 0.01 0.002; do
         python3 benchmarks/dam_break.py --particles 1000 --trials 3 --iterations 1 --density-iterations 4 \
-          --density-tolerance $t --json "$out/dam_break_1k_tolerance_${t}_h100.json" 2>&1 | grep -A1 "^device"
+          --density-tolerance $t --json "$out/dam_break_1k_tolerance_${t}_${gpu}.json" 2>&1 | grep -A1 "^device"
       done
       python3 benchmarks/dam_break.py --particles 1000 --trials 3 --iterations 1 \
-        --json "$out/dam_break_1k_fixed_1_h100.json" 2>&1 | grep -A1 "^device" ;;
+        --json "$out/dam_break_1k_fixed_1_${gpu}.json" 2>&1 | grep -A1 "^device" ;;
     render)
       # needs an EGL driver (NVIDIA's libEGL_nvidia on a GPU machine) and pyglet on the path
       ls /usr/lib/x86_64-linux-gnu/ | grep -iE '^libEGL' | tee "$out/egl.txt"
@@ -44,28 +47,28 @@ for what in "$@"; do
     accuracy)
       # the speed-accuracy sweep of docs/validation.md at 99,200 particles (Koshizuka & Oka column, 40 per L x 31)
       python3 -W ignore benchmarks/speed_accuracy.py --per-l 40 --depth 31 --sample-every 6 --tolerances 0.005 0.0025 0.001 \
-        --json "$out/speed_accuracy_100k_h100.json" 2>&1 | grep -v '^Module' ;;
+        --json "$out/speed_accuracy_100k_${gpu}.json" 2>&1 | grep -v '^Module' ;;
     tolerance-chart)
       # fixed counts against the tolerance modes at 8 substeps, one session (docs/images/speed_accuracy_tolerance.png)
       sa="python3 -W ignore benchmarks/speed_accuracy.py --per-l 40 --depth 31 --sample-every 6 --substeps 8"
-      $sa --iterations 1 2 3 4 6 8 --tolerances --json "$out/speed_accuracy_100k_fixed_8_substeps_h100.json"
+      $sa --iterations 1 2 3 4 6 8 --tolerances --json "$out/speed_accuracy_100k_fixed_8_substeps_${gpu}.json"
       $sa --iterations --max-iterations 1 --subpasses 12 --tolerances 0.02 0.01 0.005 \
-        --json "$out/speed_accuracy_100k_subpasses_i1_h100.json"
+        --json "$out/speed_accuracy_100k_subpasses_i1_${gpu}.json"
       $sa --iterations --max-iterations 1 --subpasses 16 --tolerances 0.0025 \
-        --json "$out/speed_accuracy_100k_subpasses_i1_tolerance_0.0025_h100.json"
+        --json "$out/speed_accuracy_100k_subpasses_i1_tolerance_0.0025_${gpu}.json"
       $sa --iterations --max-iterations 8 --tolerances 0.02 0.01 0.005 \
-        --json "$out/speed_accuracy_100k_iteration_tolerance_h100.json"
+        --json "$out/speed_accuracy_100k_iteration_tolerance_${gpu}.json"
       $sa --iterations --max-iterations 2 --subpasses 4 --tolerances 0.02 0.01 0.005 \
-        --json "$out/speed_accuracy_100k_subpasses_i2_h100.json" ;;
+        --json "$out/speed_accuracy_100k_subpasses_i2_${gpu}.json" ;;
     tolerance-i2)
       # two XPBD iterations with sub-passes against the fixed counts, one session
       sa="python3 -W ignore benchmarks/speed_accuracy.py --per-l 40 --depth 31 --sample-every 6 --substeps 8"
-      $sa --iterations 2 3 4 6 8 --tolerances --json "$out/speed_accuracy_100k_fixed_8_substeps_i2_session_h100.json"
+      $sa --iterations 2 3 4 6 8 --tolerances --json "$out/speed_accuracy_100k_fixed_8_substeps_i2_session_${gpu}.json"
       $sa --iterations --max-iterations 2 --subpasses 4 --tolerances 0.02 0.01 0.005 \
-        --json "$out/speed_accuracy_100k_subpasses_i2_h100.json" ;;
+        --json "$out/speed_accuracy_100k_subpasses_i2_${gpu}.json" ;;
     surge)
       # the surge front at finer resolutions than the CPU runs of docs/validation.md
-      python3 benchmarks/validate_dam_break.py --resolutions 40 60 80 --json "$out/koshizuka_oka_h100.json" 2>&1 | grep -v '^Module' ;;
+      python3 benchmarks/validate_dam_break.py --resolutions 40 60 80 --json "$out/koshizuka_oka_${gpu}.json" 2>&1 | grep -v '^Module' ;;
     diffuse)
       # the same run with diffuse particles on (25,000 capacity), against the plain one of 'bench'
       python3 benchmarks/dam_break.py --diffuse 25000 --trials 3 --json "$out/dam_break_100k_diffuse.json" 2>&1 | grep -A1 "^device" ;;
