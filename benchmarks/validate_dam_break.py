@@ -12,6 +12,10 @@ is compared with the measured front at each data point of
 resolution of ``--resolutions`` (particles across L). Prints a table and writes JSON: the
 relative error at every point, and the machine, device, particle count, substeps and iterations.
 
+The column starts as a lattice at rest distance, unloaded; with ``--settle S`` it first settles
+for S seconds behind a frictionless gate at its front face (so it starts, as in the experiment,
+at rest under its own weight) and is released at T = 0 (the gate gone at once).
+
 Usage::
 
     python benchmarks/validate_dam_break.py [--resolutions 20 30 40] [--json out.json]
@@ -45,13 +49,22 @@ def surge_front(q: np.ndarray, d: float) -> float:
     return float(np.percentile(low[:, 0], 99.9) + 0.5 * d) if len(low) else 0.0
 
 
-def build(per_l: int, depth_layers: int, args, device, height: float = 2.5 * L, wall_gap: float = 0.0, **solver_kwargs):
+def build(
+    per_l: int,
+    depth_layers: int,
+    args,
+    device,
+    height: float = 2.5 * L,
+    wall_gap: float = 0.0,
+    gate: bool = False,
+    **solver_kwargs,
+):
     """The tank and column of Koshizuka & Oka at ``per_l`` particles across L: (model, solver, pipeline, dt).
 
     ``args`` supplies ``substeps``, ``iterations``, ``cohesion``, ``viscosity``, ``speed_clamp`` and
     ``floor_friction``; ``solver_kwargs`` go to the solver. The column's back face is at x = 0 and its
     bottom at z = 0; the floor and the walls are ``wall_gap`` [m] beyond the column's faces (and the
-    far wall that far beyond 5L).
+    far wall that far beyond 5L). With ``gate``, a frictionless wall stands at the column's front face.
     """
     d = L / per_l
     builder = newton.ModelBuilder()
@@ -78,12 +91,15 @@ def build(per_l: int, depth_layers: int, args, device, height: float = 2.5 * L, 
     g = wall_gap
     width = depth_layers * d
     length = 5.0 * L
-    for center, half in (
+    walls = [
         ((-t - g, 0.5 * width, 0.5 * height), (t, 0.5 * width + 2 * t + g, 0.5 * height)),
         ((length + t + g, 0.5 * width, 0.5 * height), (t, 0.5 * width + 2 * t + g, 0.5 * height)),
         ((0.5 * length, -t - g, 0.5 * height), (0.5 * length + g, t, 0.5 * height)),
         ((0.5 * length, width + t + g, 0.5 * height), (0.5 * length + g, t, 0.5 * height)),
-    ):
+    ]
+    if gate:
+        walls.append(((L + t + g, 0.5 * width, 0.5 * height), (t, 0.5 * width + g, 0.5 * height)))
+    for center, half in walls:
         builder.add_shape_box(
             -1, xform=wp.transform(wp.vec3(*center), wp.quat_identity()), hx=half[0], hy=half[1], hz=half[2], cfg=cfg
         )
@@ -140,6 +156,11 @@ def run(per_l: int, args, points: np.ndarray, device) -> dict:
     d = L / per_l
     model, solver, pipeline, dt = build(per_l, args.depth, args, device)
     stepper = Stepper(model, solver, pipeline, dt)
+    if args.settle > 0.0:
+        # the same column settled behind the gate, then released at rest
+        settling = Stepper(*build(per_l, args.depth, args, device, gate=True))
+        stepper.state.particle_q.assign(settling.advance_to(args.settle).particle_q)
+        stepper.state.particle_qd.zero_()
     t_scale = math.sqrt(L / (2.0 * G))  # t = T * t_scale
     times = points[:, 0] * t_scale
     fronts = np.asarray([surge_front(stepper.advance_to(t).particle_q.numpy(), d) / L for t in times])
@@ -171,6 +192,12 @@ def main(argv=None):
     parser.add_argument("--viscosity", type=float, default=0.0)
     parser.add_argument("--speed-clamp", type=float, default=0.0, help="max displacement per substep [radii]; 0: off")
     parser.add_argument("--floor-friction", type=float, default=0.0, help="Coulomb friction of the floor (walls: 0)")
+    parser.add_argument(
+        "--settle",
+        type=float,
+        default=0.0,
+        help="settle the column behind a gate this long first [s]; 0: lattice start",
+    )
     parser.add_argument("--device", default=None)
     parser.add_argument("--data", default=str(DATA))
     parser.add_argument("--json", default=None)
@@ -207,6 +234,7 @@ def main(argv=None):
         "viscosity": args.viscosity,
         "speed_clamp_radii_per_substep": args.speed_clamp,
         "floor_friction": args.floor_friction,
+        "settle_s": args.settle,
         "runs": runs,
     }
     if args.json:

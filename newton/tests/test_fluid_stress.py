@@ -73,6 +73,42 @@ def test_long_substep_is_reported_and_contained(test, device):
     test.assertFalse(any("substep is too long" in str(w.message) for w in caught))
 
 
+def test_column_too_deep_for_its_iterations_is_reported(test, device):
+    """A column the density solve cannot hold (compressed by about g H / c^2, c = iterations x spacing / substep):
+    the diagnostics warn, once until the compression falls again; one it holds gives no warning."""
+
+    def run(substeps, iterations):
+        builder = newton.ModelBuilder()
+        add_block(builder, (12, 12, 10), origin=(0.05, 0.05, 0.05))  # the tank's whole floor, 1 m deep
+        add_closed_tank(builder, TANK, thickness=4.0 * D)
+        model = builder.finalize(device=device)
+        model.soft_contact_mu = 0.0
+        sim = Sim(model, substeps=substeps, contacts=True, iterations=iterations, fluid_max_displacement=1.0)
+        peak, messages = 0.0, []
+        for _ in range(12):
+            sim.step()
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                stats = sim.solver.fluid_diagnostics(sim.state_0)
+            peak = max(peak, stats["mean_compression"])
+            messages.append([str(w.message) for w in caught if "compressed by" in str(w.message)])
+        assert_contained(test, sim.q())
+        return peak, messages
+
+    # one iteration of one substep per 1/60 s: c = 6 m/s; the mean compression climbs to about 7 % (CPU)
+    peak, messages = run(1, 1)
+    test.assertGreater(peak, 0.05)
+    warned = [k for k, m in enumerate(messages) if m]
+    test.assertGreater(len(warned), 0)
+    test.assertIn("iterations", messages[warned[0]][0])
+    # not again while it stays compressed: every warning follows a report below the bound
+    test.assertTrue(all(not messages[k - 1] for k in warned if k > 0), messages)
+    # 8 substeps x 2 iterations: c = 96 m/s, g H / c^2 = 0.1 % (mean compression below 0.05 %)
+    peak, messages = run(8, 2)
+    test.assertLess(peak, 0.01)
+    test.assertFalse(any(messages), messages)
+
+
 def test_packed_at_half_spacing_expands_in_tank(test, device):
     builder = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))
     add_block(builder, (8, 8, 8), origin=(0.4, 0.4, 0.05), spacing=0.5 * D)

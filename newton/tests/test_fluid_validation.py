@@ -36,7 +36,14 @@ def test_surge_front_matches_experiment(test, device):
     data = json.loads(bench.DATA.read_text())
     points = np.asarray(data["points"])
     args = argparse.Namespace(
-        depth=4, substeps=8, iterations=2, cohesion=0.0, viscosity=0.0, speed_clamp=0.0, floor_friction=0.0
+        depth=4,
+        substeps=8,
+        iterations=2,
+        cohesion=0.0,
+        viscosity=0.0,
+        speed_clamp=0.0,
+        floor_friction=0.0,
+        settle=0.0,
     )
     result = bench.run(20, args, points, device)
     error = np.asarray(result["relative_error"])

@@ -116,7 +116,9 @@ def fluid_diagnostics(self, state) -> dict:
 
     Recomputes the neighbourhood and the poly6 density at ``state.particle_q`` (so it reads the
     result of the last step, not a value from inside it) and synchronises with the device: call it
-    when you need the numbers, not in the hot loop. Also fills :attr:`fluid_density`.
+    when you need the numbers, not in the hot loop. Also fills :attr:`fluid_density`. Warns
+    (``RuntimeWarning``) when the mean compression exceeds 5 %, more than the density solve holds
+    (a fluid too deep for its iterations and substeps), once until it falls below again.
 
     Args:
         state: The state to measure, usually the ``state_out`` of the last step.

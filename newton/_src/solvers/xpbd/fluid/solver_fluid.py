@@ -336,6 +336,7 @@ class FluidSolver:
             self.nonfinite_count = wp.zeros(1, dtype=wp.int32)
             self.fast_count = wp.zeros(1, dtype=wp.int32)
             self._fast_reported = 0
+            self._compression_reported = False
             #: density of every particle at the state of the last :meth:`diagnostics` call [kg/m^3] (0 for non-fluid)
             self.particle_density = wp.zeros(model.particle_count, dtype=float)
             self._summary = wp.zeros(_SUMMARY_SIZE, dtype=float)
@@ -873,6 +874,21 @@ class FluidSolver:
         self._fast_reported = count
         return count
 
+    def _report_compression(self, mean: float, peak: float) -> None:
+        """Warn when the mean compression rises past ``COMPRESSION_WARNING`` (once, until it falls below again)."""
+        over = mean > COMPRESSION_WARNING
+        if over and not self._compression_reported:
+            warnings.warn(
+                f"the fluid is compressed by {100.0 * mean:.1f} % on average (max {100.0 * peak:.0f} %): more "
+                "than the density solve holds. A fluid H deep is compressed by about g H / c^2 at the bottom, "
+                "with c = iterations x rest distance / substep duration: use more iterations or substeps, "
+                "fluid_warm_start, or a fluid_density_tolerance (past about 10 % a deep column collapses and "
+                "throws particles out)",
+                RuntimeWarning,
+                stacklevel=3,
+            )
+        self._compression_reported = over
+
     def diagnostics(self, state) -> dict:
         """Density and neighbourhood statistics of the fluid at ``state`` (synchronises; not for the hot loop)."""
         s, n = self.search, self.fluid_count
@@ -893,6 +909,7 @@ class FluidSolver:
         # with no active particle every sum is 0, and so is every reported value
         per = 1.0 / active if active else 0.0
         some = float(active > 0)
+        self._report_compression(float(v[3] * per), float(v[4] * some))
         return {
             "active_particles": active,
             "rest_density": self.rest_density,
@@ -910,6 +927,10 @@ class FluidSolver:
             "density_subiterations": int(self.subiterations_total.numpy()[0]),
         }
 
+
+#: mean compression max(rho/rho0 - 1, 0) above which :meth:`FluidSolver.diagnostics` warns that the density
+#: solve does not hold the fluid (healthy runs stay below 3 %, docs/validation.md "Where the method fails")
+COMPRESSION_WARNING = 0.05
 
 # summary slots: count, sum|e|, max|e|, sum compression, max compression, nbr min, nbr sum, nbr max,
 # overflowing particles, candidate sum
