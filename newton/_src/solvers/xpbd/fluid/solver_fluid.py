@@ -880,7 +880,8 @@ class FluidSolver:
         if over and not self._compression_reported:
             warnings.warn(
                 f"the fluid is compressed by {100.0 * mean:.1f} % on average (max {100.0 * peak:.0f} %): more "
-                "than the density solve holds. A fluid H deep is compressed by about g H / c^2 at the bottom, "
+                "than the density solve holds (packed too tightly, or too deep for its iterations). A fluid H "
+                "deep is compressed by about g H / c^2 at the bottom, "
                 "with c = iterations x rest distance / substep duration: use more iterations or substeps, or a "
                 "fluid_density_tolerance with fluid_max_iterations > 1, which adds passes where the fluid needs them "
                 "(past about 10 % a deep column in a closed tank collapses and throws particles out)",
