@@ -1,0 +1,163 @@
+# SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
+# SPDX-License-Identifier: Apache-2.0
+
+"""How deep a closed column the density solve holds, against the XPBD iterations.
+
+The column of Koshizuka & Oka (``validate_dam_break.py``: width L = 0.146 m, height 2L, a slice
+``--depth`` layers deep between frictionless box walls) stands behind a gate, so it is closed on
+every side but the top, and settles from a lattice at rest for ``--seconds``. ``--per-l`` sets the
+depth in particles (2 x per L layers, spacing L / per L). A run counts as held if no particle left
+the column's box and the largest compression at the end is below ``--collapse`` (a collapsing
+column reaches 50-100 %); with it each run records the estimate g H / c^2 of the bottom's
+compression, c = iterations x spacing / substep duration (docs/validation.md, "Where the method
+fails"). Prints a table, writes JSON and, with ``--plot``, the map (``--inputs``: from a JSON written before).
+
+Usage::
+
+    python benchmarks/column_depth.py --per-l 10 20 30 --iterations 1 2 4 --json out.json --plot map.png
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import sys
+from pathlib import Path
+
+import numpy as np
+
+
+def run_one(per_l: int, iterations: int, args, device) -> dict:
+    import validate_dam_break as validate  # noqa: PLC0415
+
+    cfg = argparse.Namespace(
+        substeps=args.substeps, iterations=iterations, cohesion=0.0, viscosity=0.0, speed_clamp=0.0, floor_friction=0.0
+    )
+    model, solver, pipeline, dt = validate.build(per_l, args.depth, cfg, device, gate=True)
+    stepper = validate.Stepper(model, solver, pipeline, dt)
+    L, d = validate.L, validate.L / per_l
+    width = args.depth * d
+    outside = 0
+    top = []
+    frames = int(round(args.seconds * 60.0))
+    for k in range(1, frames + 1):
+        q = stepper.advance_to(k / 60.0).particle_q.numpy()
+        # a centre more than a spacing beyond a face of the column's box has left it
+        out = (q[:, 0] < -d) | (q[:, 0] > L + d) | (q[:, 1] < -d) | (q[:, 1] > width + d) | (q[:, 2] < -d)
+        outside = max(outside, int(np.count_nonzero(out) + np.count_nonzero(~np.isfinite(q).all(axis=1))))
+        top.append(float(np.percentile(q[:, 2], 99.0)) / d)
+    stats = solver.fluid_diagnostics(stepper.state)
+    c = iterations * d / dt
+    height = 2.0 * L
+    held = outside == 0 and stats["max_compression"] < args.collapse
+    return {
+        "per_L": per_l,
+        "layers": 2 * per_l,
+        "spacing_m": d,
+        "iterations": iterations,
+        "particles": int(model.particle_count),
+        "estimate_gH_over_c2": 9.81 * height / c**2,
+        "held": bool(held),
+        "particles_outside": outside,
+        "max_compression_end": stats["max_compression"],
+        "mean_compression_end": stats["mean_compression"],
+        # 99th percentile of the particles' heights over the run [spacings]: the column's top, and how far it sank
+        "top_start_spacings": top[0],
+        "top_min_spacings": min(top),
+        "top_end_spacings": top[-1],
+    }
+
+
+def plot(result: dict, path: str) -> None:
+    import matplotlib  # noqa: PLC0415
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt  # noqa: PLC0415
+
+    runs = result["runs"]
+    iterations = sorted({r["iterations"] for r in runs})
+    layers = sorted({r["layers"] for r in runs})
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for r in runs:
+        x, y = iterations.index(r["iterations"]), layers.index(r["layers"])
+        color = "tab:green" if r["held"] else "tab:red"
+        ax.add_patch(plt.Rectangle((x - 0.45, y - 0.45), 0.9, 0.9, color=color, alpha=0.35))
+        outcome = "held" if r["held"] else f"{r['particles_outside']} out" if r["particles_outside"] else "crushed"
+        ax.annotate(
+            f"{outcome}\ngH/c² {100 * r['estimate_gH_over_c2']:.1f} %\nmax c {100 * r['max_compression_end']:.0f} %",
+            (x, y),
+            ha="center",
+            va="center",
+            fontsize=8,
+        )
+    ax.set_xlim(-0.5, len(iterations) - 0.5)
+    ax.set_ylim(-0.5, len(layers) - 0.5)
+    ax.set_xticks(range(len(iterations)), [str(i) for i in iterations])
+    ax.set_yticks(range(len(layers)), [str(n) for n in layers])
+    ax.set(
+        xlabel=f"XPBD iterations ({result['substeps']} substeps per 1/60 s)",
+        ylabel="column height [particle layers]",
+        title=f"closed column of height 2L = 0.292 m, {result['depth_layers']} layers deep, {result['device']}",
+    )
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--per-l", type=int, nargs="+", default=[10, 20, 30], help="particles across L")
+    parser.add_argument("--iterations", type=int, nargs="+", default=[1, 2, 4])
+    parser.add_argument("--substeps", type=int, default=8)
+    parser.add_argument("--depth", type=int, default=6, help="particle layers in y")
+    parser.add_argument("--seconds", type=float, default=1.0)
+    parser.add_argument("--collapse", type=float, default=0.3, help="largest compression that counts as collapsed")
+    parser.add_argument("--device", default=None)
+    parser.add_argument("--json", default=None)
+    parser.add_argument("--plot", default=None)
+    parser.add_argument("--inputs", default=None, help="plot this JSON instead of running")
+    args = parser.parse_args(argv)
+    if args.inputs:
+        plot(json.loads(Path(args.inputs).read_text()), args.plot)
+        return None
+
+    import warp as wp  # noqa: PLC0415
+
+    import newton  # noqa: PLC0415
+
+    wp.config.quiet = True
+    device = wp.get_device(args.device)
+    result = {
+        "benchmark": "column_depth",
+        "machine": platform.node(),
+        "device": device.name if device.is_cuda else "cpu",
+        "warp": wp.config.version,
+        "newton": newton.__version__,
+        "substeps": args.substeps,
+        "depth_layers": args.depth,
+        "seconds": args.seconds,
+        "collapse_threshold": args.collapse,
+        "runs": [],
+    }
+    print(
+        f"{'layers':>7}{'iters':>6}{'particles':>10}{'gH/c^2':>8}{'held':>6}{'outside':>8}{'max c':>8}{'top sank':>9}"
+    )
+    for per_l in args.per_l:
+        for iterations in args.iterations:
+            r = run_one(per_l, iterations, args, device)
+            result["runs"].append(r)
+            if args.json:
+                Path(args.json).write_text(json.dumps(result, indent=1))
+            print(
+                f"{r['layers']:>7}{r['iterations']:>6}{r['particles']:>10}{100 * r['estimate_gH_over_c2']:>7.1f}%"
+                f"{'yes' if r['held'] else 'no':>6}{r['particles_outside']:>8}{100 * r['max_compression_end']:>7.1f}%"
+                f"{r['top_start_spacings'] - r['top_min_spacings']:>9.2f}",
+                flush=True,
+            )
+    if args.plot:
+        plot(result, args.plot)
+    return result
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
