@@ -31,10 +31,10 @@ import numpy as np
 def run_one(per_l: int, iterations: int, args, device) -> dict:
     import validate_dam_break as validate  # noqa: PLC0415
 
-    cfg = argparse.Namespace(
-        substeps=args.substeps, iterations=iterations, cohesion=0.0, viscosity=0.0, speed_clamp=0.0, floor_friction=0.0
+    # walls 2.5L tall, as validate_dam_break.py's own runs
+    model, solver, pipeline, dt = validate.build_plain(
+        per_l, args.depth, args.substeps, iterations, device, height=2.5 * validate.L, gate=True
     )
-    model, solver, pipeline, dt = validate.build(per_l, args.depth, cfg, device, gate=True)
     stepper = validate.Stepper(model, solver, pipeline, dt)
     L, d = validate.L, validate.L / per_l
     width = args.depth * d

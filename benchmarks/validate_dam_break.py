@@ -120,15 +120,19 @@ def build(
     return model, solver, pipeline, dt
 
 
-def build_plain(per_l: int, depth_layers: int, substeps: int, iterations: int, device, **kwargs):
-    """The column in a tank 4L tall with nothing but the density solve: no cohesion, viscosity, speed clamp or friction.
+def build_plain(
+    per_l: int, depth_layers: int, substeps: int, iterations: int, device, height: float = 4.0 * L, **kwargs
+):
+    """The column in a tank ``height`` tall (default 4L) with nothing but the density solve: no cohesion,
+    viscosity, speed clamp or friction.
 
-    The scene of the speed-accuracy sweep and the reference comparison; ``kwargs`` go to :func:`build`.
+    The scene of the speed-accuracy sweep, the reference comparison and the column-depth map;
+    ``kwargs`` go to :func:`build`.
     """
     cfg = argparse.Namespace(
         substeps=substeps, iterations=iterations, cohesion=0.0, viscosity=0.0, speed_clamp=0.0, floor_friction=0.0
     )
-    return build(per_l, depth_layers, cfg, device, height=4.0 * L, **kwargs)
+    return build(per_l, depth_layers, cfg, device, height=height, **kwargs)
 
 
 class Stepper:

@@ -553,9 +553,10 @@ def apply_fluid_density_correction(
     if pi < 0 or active[0] == 0:
         return
     xi4 = slots.xm[i]
+    p = params[0]
     if particle_inv_mass[pi] == 0.0:
-        if store_warm != 0 and params[0].warm_start > 0.0:
-            particle_lambda[pi] = params[0].warm_start * lambda_sum[i]
+        if store_warm != 0 and p.warm_start > 0.0:
+            particle_lambda[pi] = p.warm_start * lambda_sum[i]
         if apply.on == APPLY_AS_XPBD:
             x, v = applied_particle(apply, pi, particle_deltas[pi])
             apply.xm[i] = wp.vec4(x[0], x[1], x[2], xi4[3])
@@ -563,7 +564,6 @@ def apply_fluid_density_correction(
         elif apply.on == APPLY_ADVANCE:
             apply.xm[i] = xi4
         return
-    p = params[0]
     lr_i = lambda_rho[i]
     lam_i = lr_i[0]
     rel_i = lr_i[1]
