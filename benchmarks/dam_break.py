@@ -30,7 +30,7 @@ import numpy as np
 import warp as wp
 
 import newton
-from newton._src.solvers.xpbd.fluid import neighbors
+from newton._src.solvers.xpbd.fluid import neighbors, solver_fluid
 from newton._src.solvers.xpbd.fluid.solver_fluid import wall_density_tables
 from newton.examples.fluid.example_fluid_xpbd_dam_break import TANK_HALF_LENGTH, add_dam_break
 
@@ -169,6 +169,7 @@ def pass_breakdown(solver, collision, states, contacts, substeps: int, iteration
         for _ in range(substeps):
             # with the travel limit, as after prediction (states[1] stands in for the start of the substep)
             fluid.build_neighborhood(states[0].particle_q, states[1].particle_q, states[0].particle_qd)
+        fluid._join()  # (the step's first density pass waits for the sort and scan on the second stream)
 
     # as in the step: the correction passes write the applied positions (states[1] stands in for the
     # start of the substep), so the second iteration and the viscosity pass gather nothing
@@ -179,7 +180,7 @@ def pass_breakdown(solver, collision, states, contacts, substeps: int, iteration
         for _ in range(substeps):
             fluid._slots_hold_positions = True
             for _ in range(iterations):
-                fluid.solve_density(states[0].particle_q, deltas, apply)
+                fluid.solve_density(states[0].particle_q, deltas, apply, iterations)
 
     def finish():
         for _ in range(substeps):
@@ -245,6 +246,7 @@ def run(args) -> dict:
     model.particle_max_velocity = args.speed_clamp * 0.5 * spacing / dt if args.speed_clamp > 0 else 1.0e5
     if args.scan_lanes:
         neighbors.SCAN_LANES = args.scan_lanes
+    solver_fluid.CONCURRENT_PASSES = not args.single_stream
     solver = newton.solvers.SolverXPBD(
         model,
         iterations=args.iterations,
@@ -350,6 +352,7 @@ def run(args) -> dict:
         "speed_clamp_radii_per_substep": args.speed_clamp,
         "cuda_graph": graph is not None,
         "scan_lanes": getattr(solver._fluid.search, "lanes", 1),
+        "concurrent_passes": solver._fluid._side_stream is not None,
         "sim_time_s": frames_simulated * frame_dt,
         "ms_per_frame_median": statistics.median(trials),
         "ms_per_frame_trials": trials,
@@ -377,6 +380,12 @@ def main(argv=None):
     parser.add_argument("--speed-clamp", type=float, default=0.5, help="max displacement per substep [radii]; 0: off")
     parser.add_argument(
         "--scan-lanes", type=int, default=0, help="threads per particle of the neighbour scan (0: the solver's choice)"
+    )
+    parser.add_argument(
+        "--single-stream",
+        action="store_true",
+        help="run every fluid pass on the step's stream (default on CUDA: the sort, scan and next density pass "
+        "on a second stream beside upstream's work)",
     )
     parser.add_argument("--warmup-frames", type=int, default=60)
     parser.add_argument("--frames", type=int, default=30, help="frames per timed trial")

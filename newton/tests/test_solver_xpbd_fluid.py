@@ -10,6 +10,7 @@ import warp as wp
 from newton.tests.unittest_utils import add_function_test, get_test_devices
 
 import newton
+from newton._src.solvers.xpbd.fluid import solver_fluid
 from newton._src.solvers.xpbd.fluid.kernels import (
     WALL_CONTACTS_PER_SLOT,
     FluidParams,
@@ -1068,6 +1069,57 @@ def test_fluid_collides_with_granular_particles(test, device):
     fluid_top = q[:27, 2].max()
     test.assertGreater(q[27, 2], fluid_top - 0.5 * D)  # rests on the fluid, not inside it
     test.assertGreater(np.linalg.norm(q[:27] - q[27], axis=1).min(), 0.8 * D)
+
+
+def test_concurrent_passes_match_one_stream(test, device):
+    # on CUDA the sort and scan run on a second stream beside upstream's first contacts, and each next
+    # density pass beside the application of the deltas and the next contacts, joined before anything
+    # reads them: the results must be those of one stream, eagerly and replayed from a graph (the walls
+    # are listed with atomics, so their order, and the last bits of a sum, may differ between runs).
+    # On the CPU there is one stream either way, and the results are the same bitwise
+    device = wp.get_device(device)
+
+    def build(b):
+        add_walled_column(b)
+        add_block(b, (3, 3, 2), origin=(0.25, 0.25, 1.3), vel=(0.0, 0.0, -3.0))
+
+    modes = {
+        "fixed": {"iterations": 3},
+        "warm start": {"iterations": 3, "fluid_warm_start": 0.5},
+        "tolerance": {"iterations": 3, "fluid_density_tolerance": 0.002},
+        "sub-passes": {"iterations": 2, "fluid_max_iterations": 4, "fluid_density_tolerance": 0.002},
+    }
+    saved = solver_fluid.CONCURRENT_PASSES
+    try:
+        for name, kwargs in modes.items():
+            runs = {}
+            for concurrent in (True, False):
+                solver_fluid.CONCURRENT_PASSES = concurrent
+                model = make_model(device, build, gravity=-9.81)
+                model.soft_contact_mu = 0.0
+                sim = Sim(model, substeps=4, contacts=True, fluid_viscosity=0.05, **kwargs)
+                test.assertEqual(sim.solver._fluid._side_stream is not None, concurrent and device.is_cuda)
+                sim.step(3)
+                eager = sim.q()
+                if device.is_cuda:
+                    with wp.ScopedCapture(device=device) as capture:
+                        sim.step(1)  # an even number of substeps: state_0 is the graph's input and output
+                    for _ in range(4):
+                        wp.capture_launch(capture.graph)
+                else:
+                    sim.step(5)
+                runs[concurrent] = (eager, sim.q(), sim.qd())
+            with test.subTest(mode=name):
+                # the block falls into the column meanwhile
+                test.assertGreater(np.abs(runs[False][1] - runs[False][0]).max(), D)
+                test.assertTrue(all(np.isfinite(a).all() for a in runs[True]))
+                for a, b, atol in zip(runs[True], runs[False], (1.0e-3 * D, 1.0e-3 * D, 1.0e-2), strict=True):
+                    if device.is_cuda:
+                        np.testing.assert_allclose(a, b, rtol=0.0, atol=atol)
+                    else:
+                        np.testing.assert_array_equal(a, b)
+    finally:
+        solver_fluid.CONCURRENT_PASSES = saved
 
 
 class TestSolverXPBDFluid(unittest.TestCase):

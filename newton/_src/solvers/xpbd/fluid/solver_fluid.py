@@ -12,6 +12,7 @@ applied (:meth:`FluidSolver.solve_density`) and after the step (:meth:`FluidSolv
 
 from __future__ import annotations
 
+import contextlib
 import math
 import numbers
 import warnings
@@ -73,6 +74,10 @@ WALL_TABLE_SIZE = 64
 COHESION_GATE = 0.02
 # zero of Akinci's cohesion spline, as a fraction of h: 2 (1-u)^3 u^3 = 1/64
 AKINCI_ZERO = 0.5 * (1.0 - math.sqrt(1.0 - 4.0 * (1.0 / 128.0) ** (1.0 / 3.0)))
+# on a CUDA device, run the fluid passes that do not need upstream's work of the moment on a second
+# stream beside it (the sort and scan beside the first iteration's contacts, the next density pass
+# beside the deltas' application and the next contacts); False: one stream
+CONCURRENT_PASSES = True
 
 
 def _real(name: str, value, lo: float, hi: float = math.inf, lo_open: bool = False, hi_open: bool = False) -> float:
@@ -385,6 +390,11 @@ class FluidSolver:
         #: particle-shape contacts of the step in progress (set by the solver), for the wall density
         self.contacts = None
         self._has_walls = bool(model.shape_count) and bool((model.shape_body.numpy() < 0).any())
+        # the second stream (see CONCURRENT_PASSES), and whether work on it has not been joined yet
+        self._side_stream = wp.Stream(self.device) if self.device.is_cuda and CONCURRENT_PASSES else None
+        self._side_pending = False
+        # the density pass of the next iteration ran ahead on the second stream
+        self._evaluated_ahead = False
         self.update_params()
 
     @property
@@ -446,6 +456,26 @@ class FluidSolver:
                 "fluid_max_iterations 1): create the solver with fluid_density_tolerance > 0"
             )
 
+    @contextlib.contextmanager
+    def _beside(self):
+        """Launches inside go to the second stream, after everything launched so far on the current one.
+
+        They run beside what the current stream does next, until :meth:`_join`. Without a second
+        stream (CPU, or ``CONCURRENT_PASSES`` off) they go to the current stream.
+        """
+        if self._side_stream is None:
+            yield
+            return
+        with wp.ScopedStream(self._side_stream, sync_enter=True):
+            yield
+        self._side_pending = True
+
+    def _join(self) -> None:
+        """Make the current stream wait for the work launched by :meth:`_beside` (in a graph: an edge)."""
+        if self._side_pending:
+            self.device.stream.wait_stream(self._side_stream)
+            self._side_pending = False
+
     def build_neighborhood(self, particle_q: wp.array, particle_q_start=None, particle_qd=None) -> None:
         """Sort the fluid at ``particle_q`` and list its neighbours.
 
@@ -453,7 +483,10 @@ class FluidSolver:
         is first limited to ``fluid_max_displacement`` rest distances, in the same pass, and the
         static walls of the step's contacts are listed for each slot by the same launch as the
         neighbours (a build for diagnostics or rendering lists no walls: the contacts belong to a step).
+        In a step, the sort and the scan run beside upstream's work up to the first density pass
+        (particle-shape contacts, which only read the positions): :meth:`_beside`.
         """
+        self._join()
         m, contacts = self.model, self.contacts
         walls = None
         if particle_q_start is not None and self._has_walls and contacts is not None:
@@ -465,16 +498,12 @@ class FluidSolver:
             walls.normal = contacts.soft_contact_normal
             walls.contact_max = contacts.soft_contact_max
             walls.shape_body = m.shape_body
-        self.search.build(
-            particle_q,
-            m.particle_mass,
-            m.particle_flags,
-            m.particle_world,
-            self.params,
-            particle_q_start,
-            particle_qd,
-            walls,
-        )
+        s = self.search
+        # (the travel limit writes the positions upstream goes on with: not beside it)
+        s.compute_keys(particle_q, m.particle_flags, m.particle_world, self.params, particle_q_start, particle_qd)
+        with self._beside() if particle_q_start is not None else contextlib.nullcontext():
+            s.sort(particle_q, m.particle_mass, m.particle_world)
+            s.scan(walls)
         # the build gathered these positions into slot order: the first iteration uses them as they are
         self._slots_hold_positions = True
         self._iteration = 0
@@ -482,6 +511,7 @@ class FluidSolver:
         self._current = 0
         self._positions_applied = False
         self._velocities_applied = False
+        self._evaluated_ahead = False
 
     @property
     def slots(self) -> FluidSlots:
@@ -514,6 +544,7 @@ class FluidSolver:
         and with fixed counts the correction of iteration ``iterations`` (the substep's last; 0:
         unknown) keeps the multipliers for the next substep (else a pass after the step does).
         """
+        self._join()
         m, n = self.model, self.fluid_count
         # the substep's first iteration starts from the positions the build gathered; its first density
         # pass always corrects (see decide_after_first_fluid_pass), and with the tolerance on the XPBD
@@ -535,7 +566,9 @@ class FluidSolver:
         self._positions_applied = False
         self._velocities_applied = False
         if self.config.fluid_max_iterations == 1:
-            self._evaluate_constraint(active, track_compression=self.iteration_tolerance)
+            if not self._evaluated_ahead:
+                self._evaluate_constraint(active, track_compression=self.iteration_tolerance)
+            self._evaluated_ahead = False
             if self.iteration_tolerance:
                 if first:
                     # corrects below whatever it measured; decides whether the later iterations do
@@ -559,6 +592,12 @@ class FluidSolver:
                 self._current = 1 - self._current
                 self._positions_applied = True
                 self._velocities_applied = bool(apply[3])
+                if not self.iteration_tolerance and self._iteration < iterations and self._side_stream is not None:
+                    # the next iteration's density pass needs only these positions: it runs beside
+                    # upstream's application of the deltas and its next contacts
+                    with self._beside():
+                        self._evaluate_constraint(active)
+                    self._evaluated_ahead = True
             return
         # the iteration's first pass corrects; it writes its moved positions into the other position
         # buffer, where the loop's passes go on (while it measured the mean compression above the tolerance)
@@ -699,6 +738,7 @@ class FluidSolver:
         The vorticity pass, the last, also recovers the non-finite particles (a pass of its own where
         the vorticity pass is not launched).
         """
+        self._join()
         c = self.config
         if self._warm_start_on() and not self._warm_stored:
             wp.launch(
