@@ -21,11 +21,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import platform
 import sys
 from pathlib import Path
 
 import numpy as np
+from run_record import machine_record
 
 
 def run_one(per_l: int, iterations: int, args, device) -> dict:
@@ -123,16 +123,11 @@ def main(argv=None):
 
     import warp as wp  # noqa: PLC0415
 
-    import newton  # noqa: PLC0415
-
     wp.config.quiet = True
     device = wp.get_device(args.device)
     result = {
         "benchmark": "column_depth",
-        "machine": platform.node(),
-        "device": device.name if device.is_cuda else "cpu",
-        "warp": wp.config.version,
-        "newton": newton.__version__,
+        **machine_record(device),
         "substeps": args.substeps,
         "depth_layers": args.depth,
         "seconds": args.seconds,

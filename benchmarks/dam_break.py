@@ -21,13 +21,13 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import platform
 import statistics
 import sys
 import time
 
 import numpy as np
 import warp as wp
+from run_record import machine_record
 
 import newton
 from newton._src.solvers.xpbd.fluid import neighbors, solver_fluid
@@ -328,12 +328,7 @@ def run(args) -> dict:
         density[key] = float(max(e[key] for e in errors))
     return {
         "benchmark": "dam_break",
-        "machine": platform.node(),
-        "cpu": platform.processor() or platform.machine(),
-        "device": device.name if device.is_cuda else "cpu",
-        "device_alias": device.alias,
-        "warp": wp.config.version,
-        "newton": newton.__version__,
+        **machine_record(device),
         "particles": int(model.particle_count),
         "spacing_m": spacing,
         "substeps": args.substeps,

@@ -18,12 +18,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import platform
 import sys
 from pathlib import Path
 
 import numpy as np
 import warp as wp
+from run_record import machine_record
 
 import newton
 from newton.examples.fluid.common import add_tank
@@ -172,8 +172,7 @@ def main(argv=None):
         )
     result = {
         "benchmark": "hydrostatic_drift",
-        "machine": platform.node(),
-        "device": device.name if device.is_cuda else "cpu",
+        **machine_record(device),
         "particles": int(model.particle_count),
         "column": [n, n, args.height],
         "packing": args.packing,

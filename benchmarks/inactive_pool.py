@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import platform
 import statistics
 import sys
 import time
@@ -25,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 import warp as wp
+from run_record import machine_record
 
 import newton
 
@@ -78,10 +78,7 @@ def main(argv=None):
         print(f"{device.name:<24}{active:>9}{pool:>9}{ms:>10.3f}")
     result = {
         "benchmark": "inactive_pool",
-        "machine": platform.node(),
-        "device": device.name,
-        "warp": wp.config.version,
-        "newton": newton.__version__,
+        **machine_record(device),
         "work": "one neighbour build (sort and lists), host-timed with synchronisation, median of repeats",
         "rows": rows,
     }

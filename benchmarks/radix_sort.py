@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import platform
 import sys
 from pathlib import Path
 
@@ -26,6 +25,7 @@ import warp as wp
 
 # benchmarks/ is on the path of a script run from it
 from dam_break import graph_ms
+from run_record import machine_record
 
 SORTS_PER_GRAPH = 8
 
@@ -74,9 +74,7 @@ def main(argv=None):
             print(f"{device.name:<24}{n:>8}{bits:>6}{us:>10.1f}")
     result = {
         "benchmark": "radix_sort",
-        "machine": platform.node(),
-        "device": device.name,
-        "warp": wp.config.version,
+        **machine_record(device),
         "keys": n,
         "rows": rows,
     }

@@ -33,13 +33,13 @@ import argparse
 import json
 import math
 import os
-import platform
 import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+from run_record import machine_record
 
 GL_DISPATCH = "/lib/x86_64-linux-gnu/libGLdispatch.so.0"
 G = 9.81
@@ -338,10 +338,12 @@ def main(argv=None):
         runs.append(run_dfsph(args, L, times, h))
     for run in runs:
         run["front_relative_error"] = front_errors(run, points)
+    import warp as wp  # noqa: PLC0415
+
     result = {
         "benchmark": "reference_dfsph",
-        "machine": platform.node(),
-        "cpu": platform.processor() or platform.machine(),
+        # (ours ran on --device, SPlisHSPlasH on the CPU)
+        **machine_record(wp.get_device(args.device)),
         "L_m": L,
         "per_L": args.per_l,
         "depth_layers": args.depth,

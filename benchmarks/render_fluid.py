@@ -38,6 +38,7 @@ if not os.environ.get("DISPLAY"):
     pyglet.options["headless"] = True
 
 import newton.viewer
+from run_record import machine_record
 
 import newton
 from newton.examples.fluid.example_fluid_xpbd_dam_break import Example
@@ -109,7 +110,7 @@ def main(argv=None):
 
     med = statistics.median
     result = {
-        "machine": platform.node(),
+        **machine_record(device),
         "platform": platform.platform(),
         "device": str(device),
         "device_name": device.name,

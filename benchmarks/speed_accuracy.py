@@ -29,12 +29,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import platform
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
+from run_record import machine_record
 
 
 def run_one(args, device, substeps: int, iterations: int, tolerance: float, passes: int = 1) -> dict:
@@ -121,8 +121,6 @@ def run_one(args, device, substeps: int, iterations: int, tolerance: float, pass
 def sweep(args) -> dict:
     import warp as wp  # noqa: PLC0415
 
-    import newton  # noqa: PLC0415
-
     wp.config.quiet = True
     device = wp.get_device(args.device)
     configs = [(s, i, 0.0) for s in args.substeps for i in args.iterations]
@@ -140,11 +138,7 @@ def sweep(args) -> dict:
     particles = args.per_l * 2 * args.per_l * args.depth
     result = {
         "benchmark": "speed_accuracy",
-        "machine": platform.node(),
-        "cpu": platform.processor() or platform.machine(),
-        "device": device.name if device.is_cuda else "cpu",
-        "warp": wp.config.version,
-        "newton": newton.__version__,
+        **machine_record(device),
         "particles": particles,
         "per_L": args.per_l,
         "depth_layers": args.depth,

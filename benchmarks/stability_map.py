@@ -21,13 +21,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import platform
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import warp as wp
+from run_record import machine_record
 
 import newton
 from newton.examples.fluid.common import add_closed_tank
@@ -225,8 +225,7 @@ def main(argv=None):
                         break
         result = {
             "benchmark": "stability_map",
-            "machine": platform.node(),
-            "device": device.name if device.is_cuda else "cpu",
+            **machine_record(device),
             "particles": args.block**3,
             "spacing_m": args.spacing,
             "seconds": args.seconds,

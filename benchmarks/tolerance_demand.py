@@ -18,14 +18,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import platform
 import sys
 from pathlib import Path
 
 import numpy as np
 import warp as wp
-
-import newton
+from run_record import machine_record
 
 
 def main(argv=None):
@@ -84,10 +82,7 @@ def main(argv=None):
         )
     result = {
         "benchmark": "tolerance_demand",
-        "machine": platform.node(),
-        "device": device.name if device.is_cuda else "cpu",
-        "warp": wp.config.version,
-        "newton": newton.__version__,
+        **machine_record(device),
         "particles": int(model.particle_count),
         "per_L": args.per_l,
         "depth_layers": args.depth,

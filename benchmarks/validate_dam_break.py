@@ -26,12 +26,12 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import platform
 import sys
 from pathlib import Path
 
 import numpy as np
 import warp as wp
+from run_record import machine_record
 
 import newton
 
@@ -238,10 +238,7 @@ def main(argv=None):
     result = {
         "benchmark": "validate_dam_break",
         "reference": data["source"],
-        "machine": platform.node(),
-        "device": device.name if device.is_cuda else "cpu",
-        "warp": wp.config.version,
-        "newton": newton.__version__,
+        **machine_record(device),
         "L_m": L,
         "depth_layers": args.depth,
         "substeps": args.substeps,

@@ -13,6 +13,7 @@ ahead of the experiment (docs/validation.md); the bounds here catch a front that
 import argparse
 import importlib.util
 import json
+import sys
 import unittest
 from pathlib import Path
 
@@ -25,7 +26,12 @@ BENCHMARK = Path(__file__).resolve().parents[2] / "benchmarks" / "validate_dam_b
 def load_benchmark():
     spec = importlib.util.spec_from_file_location("validate_dam_break", BENCHMARK)
     module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    # (it imports its sibling run_record, as it does when run as a script)
+    sys.path.insert(0, str(BENCHMARK.parent))
+    try:
+        spec.loader.exec_module(module)
+    finally:
+        sys.path.remove(str(BENCHMARK.parent))
     return module
 
 

@@ -1,0 +1,180 @@
+# SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
+# SPDX-License-Identifier: Apache-2.0
+
+"""Floating boxes against Archimedes: the draft of a box at rest in a pool, by box density and resolution.
+
+A square pool (1 m x 1 m, 0.4 m of water at rest spacing, frictionless walls) holds one dynamic box
+(0.3 x 0.3 x 0.2 m) lowered onto the water at rest. Once it has settled, its draft (the still water
+level away from the box minus the height of its bottom face) is compared with Archimedes' law,
+``draft = rho_box / rho_water x box height``, with rho_water = particle mass / spacing^3 (the density
+the solver's rest density is calibrated to). Two-way coupling, XPBD's particle-shape contacts: the
+fluid's pressure reaches the box only through the contacts of the particles next to it, so the
+box needs a few spacings of height before its draft is resolved.
+
+    python benchmarks/floating_box.py [--spacings 0.1 0.05] [--densities 250 500 750] [--json out.json]
+
+Prints a table and writes JSON: per run the box's mean height and its spread over the last second,
+the water level, the draft and Archimedes' draft, the fluid's density error at the end (the
+solver's own measure) and the wall time per frame.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import warp as wp
+from run_record import machine_record
+
+import newton
+
+POOL_HALF = 0.5  # inner half-width of the square pool [m]
+DEPTH = 0.4  # water depth at rest spacing [m]
+BOX_HALF = (0.15, 0.15, 0.1)  # [m]
+WATER_DENSITY = 1000.0  # particle mass / spacing^3 [kg/m^3]
+
+
+def build(spacing: float, box_density: float, device):
+    """The pool, its water at rest spacing and the box just above the surface: the model."""
+    d = spacing
+    builder = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))
+    n, nz = int(round(2.0 * POOL_HALF / d)), int(round(DEPTH / d))
+    builder.add_particle_grid(
+        pos=wp.vec3(-POOL_HALF + 0.5 * d, -POOL_HALF + 0.5 * d, 0.5 * d),
+        rot=wp.quat_identity(),
+        vel=wp.vec3(0.0),
+        dim_x=n,
+        dim_y=n,
+        dim_z=nz,
+        cell_x=d,
+        cell_y=d,
+        cell_z=d,
+        mass=WATER_DENSITY * d**3,
+        jitter=0.0,
+        radius_mean=0.5 * d,
+        flags=int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID),
+    )
+    cfg = newton.ModelBuilder.ShapeConfig(mu=0.0)
+    builder.add_ground_plane(cfg=cfg)
+    w, t = POOL_HALF, 0.05
+    for c, h in (
+        ((-w - t, 0.0, 0.5), (t, w + 2.0 * t, 0.5)),
+        ((w + t, 0.0, 0.5), (t, w + 2.0 * t, 0.5)),
+        ((0.0, -w - t, 0.5), (w, t, 0.5)),
+        ((0.0, w + t, 0.5), (w, t, 0.5)),
+    ):
+        builder.add_shape_box(
+            -1, xform=wp.transform(wp.vec3(*c), wp.quat_identity()), hx=h[0], hy=h[1], hz=h[2], cfg=cfg
+        )
+    # resting on the surface: it sinks to its draft from there
+    body = builder.add_body(xform=wp.transform(wp.vec3(0.0, 0.0, DEPTH + BOX_HALF[2]), wp.quat_identity()))
+    box_cfg = newton.ModelBuilder.ShapeConfig(mu=0.0, density=box_density)
+    builder.add_shape_box(body, hx=BOX_HALF[0], hy=BOX_HALF[1], hz=BOX_HALF[2], cfg=box_cfg)
+    model = builder.finalize(device=device)
+    model.soft_contact_mu = 0.0
+    return model
+
+
+def run(spacing: float, box_density: float, args, device) -> dict:
+    model = build(spacing, box_density, device)
+    solver = newton.solvers.SolverXPBD(
+        model, iterations=args.iterations, fluid_rest_distance=spacing, fluid_viscosity=args.viscosity
+    )
+    pipeline = newton.CollisionPipeline(model, soft_contact_gap=0.5 * spacing)
+    contacts = pipeline.contacts()
+    states = [model.state(), model.state()]
+    dt = 1.0 / 60.0 / args.substeps
+
+    def frame():
+        for _ in range(args.substeps):
+            states[0].clear_forces()
+            pipeline.collide(states[0], contacts)
+            solver.step(states[0], states[1], None, contacts, dt)
+            states[0], states[1] = states[1], states[0]
+
+    frames = int(round(args.seconds * 60.0))
+    averaged = int(round(args.average * 60.0))
+    heights = []
+    t0 = time.perf_counter()
+    for k in range(frames):
+        frame()
+        if k >= frames - averaged:
+            heights.append(float(states[0].body_q.numpy()[0, 2]))
+    wp.synchronize_device(device)
+    ms = (time.perf_counter() - t0) * 1000.0 / frames
+    q = states[0].particle_q.numpy()
+    # the still level, away from the box (the box raised it by the water it displaced)
+    far = (np.abs(q[:, 0]) > BOX_HALF[0] + 2.0 * spacing) | (np.abs(q[:, 1]) > BOX_HALF[1] + 2.0 * spacing)
+    level = float(np.percentile(q[far, 2], 99)) + 0.5 * spacing
+    centre = float(np.mean(heights))
+    draft = level - (centre - BOX_HALF[2])
+    expected = box_density / WATER_DENSITY * 2.0 * BOX_HALF[2]
+    stats = solver.fluid_diagnostics(states[0])
+    return {
+        "spacing_m": spacing,
+        "box_height_spacings": 2.0 * BOX_HALF[2] / spacing,
+        "box_density": box_density,
+        "particles": int(model.particle_count),
+        "box_centre_m": centre,
+        "box_centre_spread_m": float(np.ptp(heights)),
+        "water_level_m": level,
+        "draft_m": draft,
+        "archimedes_draft_m": expected,
+        "draft_relative_error": draft / expected - 1.0,
+        "mean_compression": stats["mean_compression"],
+        "max_compression": stats["max_compression"],
+        "ms_per_frame": ms,
+    }
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--spacings", type=float, nargs="+", default=[0.1, 0.05])
+    parser.add_argument("--densities", type=float, nargs="+", default=[250.0, 500.0, 750.0])
+    parser.add_argument("--substeps", type=int, default=8)
+    parser.add_argument("--iterations", type=int, default=2)
+    parser.add_argument("--viscosity", type=float, default=0.1)
+    parser.add_argument("--seconds", type=float, default=2.5, help="simulated time [s]")
+    parser.add_argument("--average", type=float, default=1.0, help="the last seconds the box height is averaged over")
+    parser.add_argument("--device", default=None)
+    parser.add_argument("--json", default=None)
+    args = parser.parse_args(argv)
+    device = wp.get_device(args.device)
+    runs = []
+    print(
+        f"{'spacing':>8}{'box/h':>7}{'density':>9}{'particles':>10}{'draft':>8}{'Archimedes':>11}{'error':>8}"
+        f"{'spread':>8}{'mean c':>8}{'ms/frame':>10}"
+    )
+    for spacing in args.spacings:
+        for density in args.densities:
+            r = run(spacing, density, args, device)
+            runs.append(r)
+            print(
+                f"{spacing:>8.4f}{r['box_height_spacings']:>7.1f}{density:>9.0f}{r['particles']:>10}"
+                f"{r['draft_m']:>8.4f}{r['archimedes_draft_m']:>11.4f}{100.0 * r['draft_relative_error']:>7.1f}%"
+                f"{r['box_centre_spread_m']:>8.4f}{100.0 * r['mean_compression']:>7.2f}%{r['ms_per_frame']:>10.1f}",
+                flush=True,
+            )
+    result = {
+        "benchmark": "floating_box",
+        **machine_record(device),
+        "substeps": args.substeps,
+        "iterations": args.iterations,
+        "viscosity": args.viscosity,
+        "seconds": args.seconds,
+        "averaged_s": args.average,
+        "box_half_extents_m": BOX_HALF,
+        "pool_half_width_m": POOL_HALF,
+        "depth_m": DEPTH,
+        "runs": runs,
+    }
+    if args.json:
+        Path(args.json).write_text(json.dumps(result, indent=1))
+    return result
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,31 @@
+# SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
+# SPDX-License-Identifier: Apache-2.0
+
+"""What every benchmark's JSON records about where it ran: machine, CPU, device, versions and date."""
+
+from __future__ import annotations
+
+import datetime
+import platform
+
+
+def machine_record(device) -> dict:
+    """The machine, its CPU, the Warp device (its name, or ``"cpu"``, and alias), Warp, Newton and the date.
+
+    Args:
+        device: The ``wp.Device`` the benchmark ran on.
+    """
+    # (imported here: a benchmark that drives another simulator may need to import Warp after it)
+    import warp as wp  # noqa: PLC0415
+
+    import newton  # noqa: PLC0415
+
+    return {
+        "machine": platform.node(),
+        "cpu": platform.processor() or platform.machine(),
+        "device": device.name if device.is_cuda else "cpu",
+        "device_alias": device.alias,
+        "warp": wp.config.version,
+        "newton": newton.__version__,
+        "date": datetime.date.today().isoformat(),
+    }
