@@ -30,6 +30,7 @@ import warp as wp
 from run_record import machine_record
 
 import newton
+from newton.examples.fluid.common import add_tank
 
 POOL_HALF = 0.5  # inner half-width of the square pool [m]
 DEPTH = 0.4  # water depth at rest spacing [m]
@@ -57,18 +58,8 @@ def build(spacing: float, box_density: float, device):
         radius_mean=0.5 * d,
         flags=int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID),
     )
-    cfg = newton.ModelBuilder.ShapeConfig(mu=0.0)
-    builder.add_ground_plane(cfg=cfg)
-    w, t = POOL_HALF, 0.05
-    for c, h in (
-        ((-w - t, 0.0, 0.5), (t, w + 2.0 * t, 0.5)),
-        ((w + t, 0.0, 0.5), (t, w + 2.0 * t, 0.5)),
-        ((0.0, -w - t, 0.5), (w, t, 0.5)),
-        ((0.0, w + t, 0.5), (w, t, 0.5)),
-    ):
-        builder.add_shape_box(
-            -1, xform=wp.transform(wp.vec3(*c), wp.quat_identity()), hx=h[0], hy=h[1], hz=h[2], cfg=cfg
-        )
+    builder.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(mu=0.0))
+    add_tank(builder, POOL_HALF, POOL_HALF, 1.0, 0.05)
     # resting on the surface: it sinks to its draft from there
     body = builder.add_body(xform=wp.transform(wp.vec3(0.0, 0.0, DEPTH + BOX_HALF[2]), wp.quat_identity()))
     box_cfg = newton.ModelBuilder.ShapeConfig(mu=0.0, density=box_density)

@@ -22,6 +22,7 @@ from newton._src.solvers.xpbd.fluid.kernels import (
 )
 from newton._src.solvers.xpbd.fluid.neighbors import FluidNeighborSearch
 from newton._src.solvers.xpbd.fluid.solver_fluid import FULL_NEIGHBOR_FACTOR, wall_density_tables
+from newton.examples.fluid.common import add_tank
 
 FLUID = int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID)
 D = 0.1  # rest distance [m]
@@ -65,7 +66,8 @@ class Sim:
         self.solver = newton.solvers.SolverXPBD(model, **solver_kwargs)
         self.state_0, self.state_1 = model.state(), model.state()
         # contacts out to one diameter from the surface, so fluid particles see the walls' density
-        self.collision = newton.CollisionPipeline(model, soft_contact_gap=0.5 * D) if contacts else None
+        gap = 0.5 * solver_kwargs["fluid_rest_distance"]
+        self.collision = newton.CollisionPipeline(model, soft_contact_gap=gap) if contacts else None
         self.contacts = self.collision.contacts() if contacts else None
         self.dt = 1.0 / fps / substeps
         self.substeps = substeps
@@ -583,23 +585,17 @@ def test_coincident_particles_separate_deterministically(test, device):
     np.testing.assert_allclose(q.mean(axis=0), (0.0, 0.0, 1.0), atol=1.0e-6)  # symmetric push, no drift
 
 
-def pool_with_box(device, box_density):
+def pool_with_box(device, box_density, spacing=D, half=0.5, depth=0.5, box_half=(0.15, 0.15, 0.1), box_z=0.75):
+    """Water ``depth`` [m] deep at ``spacing`` in a frictionless square pool of half-width ``half``, and a box above."""
     builder = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))
-    cfg = newton.ModelBuilder.ShapeConfig(mu=0.0)
-    add_block(builder, (10, 10, 5), origin=(-0.45, -0.45, 0.5 * D))
-    builder.add_ground_plane(cfg=cfg)
-    for c, h in (
-        ((-0.55, 0.0, 0.5), (0.05, 0.6, 0.5)),
-        ((0.55, 0.0, 0.5), (0.05, 0.6, 0.5)),
-        ((0.0, -0.55, 0.5), (0.5, 0.05, 0.5)),
-        ((0.0, 0.55, 0.5), (0.5, 0.05, 0.5)),
-    ):
-        builder.add_shape_box(
-            -1, xform=wp.transform(wp.vec3(*c), wp.quat_identity()), hx=h[0], hy=h[1], hz=h[2], cfg=cfg
-        )
-    body = builder.add_body(xform=wp.transform(wp.vec3(0.0, 0.0, 0.75), wp.quat_identity()))
+    n, d = int(round(2.0 * half / spacing)), spacing
+    origin = (-half + 0.5 * d, -half + 0.5 * d, 0.5 * d)
+    add_block(builder, (n, n, int(round(depth / d))), origin, spacing=d, mass=1000.0 * d**3, radius=0.5 * d)
+    builder.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(mu=0.0))
+    add_tank(builder, half, half, 1.0, 0.05)
+    body = builder.add_body(xform=wp.transform(wp.vec3(0.0, 0.0, box_z), wp.quat_identity()))
     box_cfg = newton.ModelBuilder.ShapeConfig(mu=0.0, density=box_density)
-    builder.add_shape_box(body, hx=0.15, hy=0.15, hz=0.1, cfg=box_cfg)
+    builder.add_shape_box(body, hx=box_half[0], hy=box_half[1], hz=box_half[2], cfg=box_cfg)
     model = builder.finalize(device=device)
     model.soft_contact_mu = 0.0
     return model
@@ -632,30 +628,8 @@ def test_floating_box_draft_matches_archimedes(test, device):
     d, half, depth, box = 0.5 * D, 0.3, 0.3, 0.1
     drafts = {}
     for density in (250.0, 750.0):
-        builder = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))
-        n = int(round(2.0 * half / d))
-        origin = (-half + 0.5 * d, -half + 0.5 * d, 0.5 * d)
-        add_block(builder, (n, n, int(round(depth / d))), origin, spacing=d, mass=1000.0 * d**3, radius=0.5 * d)
-        cfg = newton.ModelBuilder.ShapeConfig(mu=0.0)
-        builder.add_ground_plane(cfg=cfg)
-        for c, h in (
-            ((-half - 0.05, 0.0, 0.5), (0.05, half + 0.1, 0.5)),
-            ((half + 0.05, 0.0, 0.5), (0.05, half + 0.1, 0.5)),
-            ((0.0, -half - 0.05, 0.5), (half, 0.05, 0.5)),
-            ((0.0, half + 0.05, 0.5), (half, 0.05, 0.5)),
-        ):
-            builder.add_shape_box(
-                -1, xform=wp.transform(wp.vec3(*c), wp.quat_identity()), hx=h[0], hy=h[1], hz=h[2], cfg=cfg
-            )
-        body = builder.add_body(xform=wp.transform(wp.vec3(0.0, 0.0, depth + box), wp.quat_identity()))
-        builder.add_shape_box(
-            body, hx=box, hy=box, hz=box, cfg=newton.ModelBuilder.ShapeConfig(mu=0.0, density=density)
-        )
-        model = builder.finalize(device=device)
-        model.soft_contact_mu = 0.0
+        model = pool_with_box(device, density, d, half, depth, (box, box, box), box_z=depth + box)
         sim = Sim(model, substeps=8, contacts=True, fluid_rest_distance=d, fluid_viscosity=0.1)
-        sim.collision = newton.CollisionPipeline(model, soft_contact_gap=0.5 * d)
-        sim.contacts = sim.collision.contacts()
         sim.step(90)
         heights = []
         for _ in range(30):
