@@ -91,14 +91,18 @@ def build(
     g = wall_gap
     width = depth_layers * d
     length = 5.0 * L
+    # every wall reaches through the walls it meets to their outer faces, and 2t into the floor: a box's
+    # nearest face pushes a particle pressed into it, so a face flush with a neighbour's inner face or with
+    # the floor would push particles pressed into the joint out through it
+    zc, hz = 0.5 * (height - g - 2 * t), 0.5 * (height + g + 2 * t)
     walls = [
-        ((-t - g, 0.5 * width, 0.5 * height), (t, 0.5 * width + 2 * t + g, 0.5 * height)),
-        ((length + t + g, 0.5 * width, 0.5 * height), (t, 0.5 * width + 2 * t + g, 0.5 * height)),
-        ((0.5 * length, -t - g, 0.5 * height), (0.5 * length + g, t, 0.5 * height)),
-        ((0.5 * length, width + t + g, 0.5 * height), (0.5 * length + g, t, 0.5 * height)),
+        ((-t - g, 0.5 * width, zc), (t, 0.5 * width + 2 * t + g, hz)),
+        ((length + t + g, 0.5 * width, zc), (t, 0.5 * width + 2 * t + g, hz)),
+        ((0.5 * length, -t - g, zc), (0.5 * length + g + 2 * t, t, hz)),
+        ((0.5 * length, width + t + g, zc), (0.5 * length + g + 2 * t, t, hz)),
     ]
     if gate:
-        walls.append(((L + t + g, 0.5 * width, 0.5 * height), (t, 0.5 * width + g, 0.5 * height)))
+        walls.append(((L + t + g, 0.5 * width, zc), (t, 0.5 * width + g + 2 * t, hz)))
     for center, half in walls:
         builder.add_shape_box(
             -1, xform=wp.transform(wp.vec3(*center), wp.quat_identity()), hx=half[0], hy=half[1], hz=half[2], cfg=cfg

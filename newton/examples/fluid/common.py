@@ -26,18 +26,22 @@ def add_tank(
     """Four frictionless walls around ``|x - cx| <= half_x``, ``|y - cy| <= half_y`` [m] (``center = (cx, cy)``).
 
     The front (-y) wall collides but is not drawn, like the glass of a real tank, so a camera in
-    front sees in.
+    front sees in. Each wall reaches through the two it meets to their outer faces and ``2 thickness``
+    below z = 0 (into a ground plane there): a particle pressed into a wall takes the nearest face of
+    every box it is in, and an end or bottom face flush with the next wall's inner face or with the
+    floor would push it out through the joint.
     """
-    t, hz = thickness, 0.5 * height
+    t = thickness
+    zc, hz = 0.5 * height - t, 0.5 * height + t
     walls = (
-        ((-half_x - t, 0.0, hz), (t, half_y + 2.0 * t, hz)),
-        ((half_x + t, 0.0, hz), (t, half_y + 2.0 * t, hz)),
-        ((0.0, -half_y - t, hz), (half_x, t, hz)),
-        ((0.0, half_y + t, hz), (half_x, t, hz)),
+        ((-half_x - t, 0.0), (t, half_y + 2.0 * t, hz)),
+        ((half_x + t, 0.0), (t, half_y + 2.0 * t, hz)),
+        ((0.0, -half_y - t), (half_x + 2.0 * t, t, hz)),
+        ((0.0, half_y + t), (half_x + 2.0 * t, t, hz)),
     )
     for k, (c, half) in enumerate(walls):
         cfg = newton.ModelBuilder.ShapeConfig(mu=0.0, is_visible=k != 2)
-        xform = wp.transform(wp.vec3(center[0] + c[0], center[1] + c[1], c[2]), wp.quat_identity())
+        xform = wp.transform(wp.vec3(center[0] + c[0], center[1] + c[1], zc), wp.quat_identity())
         builder.add_shape_box(-1, xform=xform, hx=half[0], hy=half[1], hz=half[2], cfg=cfg)
 
 
