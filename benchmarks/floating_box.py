@@ -42,7 +42,8 @@ def build(spacing: float, box_density: float, device):
     """The pool, its water at rest spacing and the box just above the surface: the model."""
     d = spacing
     builder = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))
-    n, nz = int(round(2.0 * POOL_HALF / d)), int(round(DEPTH / d))
+    # as many columns as fit between the walls (rounding up would start the outer ones inside them)
+    n, nz = int(2.0 * POOL_HALF / d + 1.0e-3), int(round(DEPTH / d))
     builder.add_particle_grid(
         pos=wp.vec3(-POOL_HALF + 0.5 * d, -POOL_HALF + 0.5 * d, 0.5 * d),
         rot=wp.quat_identity(),
@@ -60,8 +61,9 @@ def build(spacing: float, box_density: float, device):
     )
     builder.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(mu=0.0))
     add_tank(builder, POOL_HALF, POOL_HALF, 1.0, 0.05)
-    # resting on the surface: it sinks to its draft from there
-    body = builder.add_body(xform=wp.transform(wp.vec3(0.0, 0.0, DEPTH + BOX_HALF[2]), wp.quat_identity()))
+    # resting on the lattice's surface (half a spacing above its top layer; DEPTH rounded to layers): it sinks
+    # to its draft from there. A box started inside the water is thrown out by the contacts' first correction
+    body = builder.add_body(xform=wp.transform(wp.vec3(0.0, 0.0, nz * d + BOX_HALF[2]), wp.quat_identity()))
     box_cfg = newton.ModelBuilder.ShapeConfig(mu=0.0, density=box_density)
     builder.add_shape_box(body, hx=BOX_HALF[0], hy=BOX_HALF[1], hz=BOX_HALF[2], cfg=box_cfg)
     model = builder.finalize(device=device)
