@@ -122,14 +122,17 @@ def test_collapsing_column_stays_inside_tank_walls(test, device):
     model = builder.finalize(device=device)
     model.soft_contact_mu = 0.0
     # g H / c^2 = 23 % with c = 1 x spacing / substep: the column does not hold (docs/validation.md, "deep fluid")
-    sim = Sim(model, substeps=8, contacts=True, iterations=1, fluid_rest_distance=d)
+    # 8 substeps per 1/60 s, stepped one at a time: a particle thrown just over a wall's top can be above it
+    # for less than a frame
+    sim = Sim(model, substeps=1, fps=480.0, contacts=True, iterations=1, fluid_rest_distance=d)
     highest, peak = sim.q()[:, 2].copy(), 0.0
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        for _ in range(60):
+        for k in range(480):
             sim.step()
             highest = np.maximum(highest, sim.q()[:, 2])
-            peak = max(peak, sim.solver.fluid_diagnostics(sim.state_0)["max_compression"])
+            if k % 8 == 7:
+                peak = max(peak, sim.solver.fluid_diagnostics(sim.state_0)["max_compression"])
     test.assertTrue(any("compressed by" in str(w.message) for w in caught))
     test.assertGreater(peak, 0.3)
     q = sim.q()
