@@ -26,23 +26,37 @@ def add_tank(
     """Four frictionless walls around ``|x - cx| <= half_x``, ``|y - cy| <= half_y`` [m] (``center = (cx, cy)``).
 
     The front (-y) wall collides but is not drawn, like the glass of a real tank, so a camera in
-    front sees in. Each wall reaches through the two it meets to their outer faces and ``2 thickness``
-    below z = 0 (into a ground plane there): a particle pressed into a wall takes the nearest face of
-    every box it is in, and an end or bottom face flush with the next wall's inner face or with the
-    floor would push it out through the joint.
+    front sees in. The walls that collide reach through the two they meet to their outer faces and
+    ``2 thickness`` below z = 0 (into a ground plane there): a particle pressed into a wall takes the
+    nearest face of every box it is in, and an end or bottom face flush with the next wall's inner
+    face or with the floor would push it out through the joint. What is drawn are boxes that meet
+    without overlapping (overlapping boxes of the same height would show their shared top face).
     """
     t = thickness
-    zc, hz = 0.5 * height - t, 0.5 * height + t
     walls = (
-        ((-half_x - t, 0.0), (t, half_y + 2.0 * t, hz)),
-        ((half_x + t, 0.0), (t, half_y + 2.0 * t, hz)),
-        ((0.0, -half_y - t), (half_x + 2.0 * t, t, hz)),
-        ((0.0, half_y + t), (half_x + 2.0 * t, t, hz)),
+        ((-half_x - t, 0.0), (t, half_y + 2.0 * t), t),
+        ((half_x + t, 0.0), (t, half_y + 2.0 * t), t),
+        ((0.0, -half_y - t), (half_x, t), half_x + 2.0 * t),
+        ((0.0, half_y + t), (half_x, t), half_x + 2.0 * t),
     )
-    for k, (c, half) in enumerate(walls):
-        cfg = newton.ModelBuilder.ShapeConfig(mu=0.0, is_visible=k != 2)
-        xform = wp.transform(wp.vec3(center[0] + c[0], center[1] + c[1], zc), wp.quat_identity())
-        builder.add_shape_box(-1, xform=xform, hx=half[0], hy=half[1], hz=half[2], cfg=cfg)
+    collide = newton.ModelBuilder.ShapeConfig(mu=0.0, is_visible=False)
+    draw = newton.ModelBuilder.ShapeConfig(has_shape_collision=False, has_particle_collision=False)
+
+    def add(k, drawn):
+        (x, y), (hx, hy), collide_hx = walls[k]
+        x, y = center[0] + x, center[1] + y
+        if drawn:
+            xform = wp.transform(wp.vec3(x, y, 0.5 * height), wp.quat_identity())
+            builder.add_shape_box(-1, xform=xform, hx=hx, hy=hy, hz=0.5 * height, cfg=draw)
+        else:
+            xform = wp.transform(wp.vec3(x, y, 0.5 * height - t), wp.quat_identity())
+            builder.add_shape_box(-1, xform=xform, hx=collide_hx, hy=hy, hz=0.5 * height + t, cfg=collide)
+
+    # the drawn walls first, in the order (and so the viewer's colours) of the single boxes before them
+    for k in range(4):
+        add(k, drawn=k != 2)
+    for k in (0, 1, 3):
+        add(k, drawn=False)
 
 
 def add_closed_tank(builder: newton.ModelBuilder, edge: float, thickness: float) -> None:
