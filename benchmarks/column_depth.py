@@ -34,8 +34,9 @@ def run_one(per_l: int, iterations: int, args, device) -> dict:
     import validate_dam_break as validate  # noqa: PLC0415
 
     # walls 2.5L tall, as validate_dam_break.py's own runs
+    wall_top = 2.5 * validate.L
     model, solver, pipeline, dt = validate.build_plain(
-        per_l, args.depth, args.substeps, iterations, device, height=2.5 * validate.L, gate=True
+        per_l, args.depth, args.substeps, iterations, device, height=wall_top, gate=True
     )
     stepper = validate.Stepper(model, solver, pipeline, dt)
     L, d = validate.L, validate.L / per_l
@@ -53,9 +54,9 @@ def run_one(per_l: int, iterations: int, args, device) -> dict:
         # (the box is open there), or through a wall or a joint if it never rose above them
         out = (q[:, 0] < -d) | (q[:, 0] > L + d) | (q[:, 1] < -d) | (q[:, 1] > width + d) | (q[:, 2] < -d)
         outside = max(outside, int(np.count_nonzero(out) + np.count_nonzero(~np.isfinite(q).all(axis=1))))
-        # (at the end only: a collapse presses particles deeper than a spacing into the walls for a while)
-        through = int(np.count_nonzero(out & (highest < 2.5 * L)))
         top.append(float(np.percentile(q[:, 2], 99.0)) / d)
+    # at the end only: a collapse presses particles deeper than a spacing into the walls for a while
+    through = int(np.count_nonzero(out & (highest < wall_top)))
     stats = solver.fluid_diagnostics(stepper.state)
     c = iterations * d / dt
     height = 2.0 * L

@@ -33,11 +33,11 @@ def load_benchmark(path=BENCHMARK):
     spec = importlib.util.spec_from_file_location(path.stem, path)
     module = importlib.util.module_from_spec(spec)
     # (it imports its sibling run_record, as it does when run as a script)
-    sys.path.insert(0, str(BENCHMARK.parent))
+    sys.path.insert(0, str(path.parent))
     try:
         spec.loader.exec_module(module)
     finally:
-        sys.path.remove(str(BENCHMARK.parent))
+        sys.path.remove(str(path.parent))
     return module
 
 
