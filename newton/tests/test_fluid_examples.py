@@ -9,6 +9,7 @@ import unittest
 from pathlib import Path
 
 import newton.viewer
+import numpy as np
 import warp as wp
 from newton.tests.unittest_utils import add_function_test, get_test_devices
 
@@ -119,6 +120,95 @@ def test_capture_writes_video_and_sidecar(test, device):
         test.assertGreater(on_disk["mean_abs_density_error"], 0.0)
 
 
+def test_still_without_video(test, device):
+    import json  # noqa: PLC0415
+    import tempfile  # noqa: PLC0415
+
+    import imageio.v3 as iio  # noqa: PLC0415
+
+    from newton.examples.fluid import capture  # noqa: PLC0415
+    from newton.examples.fluid.example_fluid_xpbd_dam_break import Example  # noqa: PLC0415
+
+    with tempfile.TemporaryDirectory() as tmp:
+        still = str(Path(tmp) / "still.png")
+        common = ["--particle-count", "2000", "--num-frames", "6", "--capture-size", "160", "96"]
+        args = Example.create_parser().parse_args([*common, "--capture-still", still, "--still-frame", "3"])
+        rendered = []
+        upstream_render = Example.render
+
+        class Counted(Example):
+            def render(self):
+                rendered.append(self.sim_time)
+                upstream_render(self)
+
+        with wp.ScopedDevice(device):
+            sidecar = capture.capture(Counted, args, "fluid_xpbd_dam_break")
+        test.assertEqual(sorted(p.name for p in Path(tmp).iterdir()), ["still.png", "still.png.json"])
+        test.assertEqual(iio.imread(still).shape[:2], (96, 160))
+        # only the still's frame was rendered, after the third step
+        np.testing.assert_allclose(rendered, [3.0 / 60.0])
+        on_disk = json.loads(Path(still + ".json").read_text())
+        test.assertEqual(on_disk, json.loads(json.dumps(sidecar)))
+        test.assertEqual((on_disk["video"], on_disk["still_frame"], on_disk["frames_written"]), (None, 3, 0))
+        for bad, message in ((["--still-frame", "7"], "still_frame=7"), (["--still-frame", "0"], "still_frame=0")):
+            args = Example.create_parser().parse_args([*common, "--capture-still", still, *bad])
+            with test.assertRaisesRegex(ValueError, message):
+                capture.capture(Example, args, "fluid_xpbd_dam_break")
+
+
+def test_run_shows_progress_and_summary(test, device):
+    """The README's first command, small: a progress line on stderr, one summary line; --quiet prints neither."""
+    import subprocess  # noqa: PLC0415
+    import sys  # noqa: PLC0415
+
+    command = [sys.executable, "-m", "newton.examples", "fluid_xpbd_dam_break", "--viewer", "null"]
+    command += ["--num-frames", "12", "--device", "cpu"]
+    result = subprocess.run(command, capture_output=True, text=True, timeout=600, check=True)
+    out = result.stdout.strip().splitlines()
+    test.assertIn("running on the CPU: 5,000 particles by default (100,000 on a GPU)", result.stdout)
+    summary = out[-1]
+    test.assertRegex(summary, r"^fluid_xpbd_dam_break: 12 frames in [0-9.]+ s \([0-9.]+ frames/s\), 5,148 particles, ")
+    test.assertRegex(summary, r"mean density error [0-9.]+ %, 0 particles lost$")
+    # not a terminal: whole lines, the last one at 12/12
+    test.assertRegex(result.stderr, r"fluid_xpbd_dam_break: 100%.*12/12 .*density error [0-9.]+ %")
+    test.assertNotIn("\r", result.stderr)
+    quiet = subprocess.run(
+        [*command, "--quiet", "--particle-count", "1000"], capture_output=True, text=True, timeout=600
+    )
+    test.assertEqual(quiet.returncode, 0, quiet.stderr[-2000:])
+    test.assertEqual(quiet.stdout.strip(), "")
+    test.assertNotIn("frames/s", quiet.stderr)
+
+
+def test_readme_commands_and_flags_exist(test, device):
+    """Every example command and every example flag the README names exists (and every viewer it names)."""
+    readme_path = Path(__file__).resolve().parents[2] / "README.md"
+    if not readme_path.is_file():
+        test.skipTest("README.md is part of the source checkout, not of the installed wheel")
+    readme = readme_path.read_text(encoding="utf-8")
+    # inline code outside the fenced listings, and the indented command lines
+    spans = re.findall(r"`([^`\n]+)`", re.sub(r"```.*?```", "", readme, flags=re.S))
+    commands = [c for c in spans if "newton.examples " in c]
+    commands += [line.strip() for line in readme.splitlines() if line.startswith("    ") and "newton.examples " in line]
+    test.assertGreaterEqual(len(commands), 2)
+    flag = r"(--[a-z][a-z-]*)(?:\s+([^\s-]\S*))?"
+    flags = []
+    for command in commands:
+        words = command.split("newton.examples ", 1)[1].split()
+        if not words[0].startswith(("<", "-")):
+            test.assertIn(words[0], EXAMPLES, command)
+        flags += re.findall(flag, " ".join(words))
+    flags += [f for c in spans if c.startswith("--") for f in re.findall(flag, c)]
+    test.assertGreater(len(flags), 8)
+    for name in EXAMPLES:
+        parser = importlib.import_module(f"newton.examples.fluid.example_{name}").Example.create_parser()
+        options = {o: a for a in parser._actions for o in a.option_strings}
+        for flag, value in flags:
+            test.assertIn(flag, options, f"{name}: README names {flag}")
+            if flag == "--viewer" and value:
+                test.assertIn(value, options[flag].choices, f"{name}: README names --viewer {value}")
+
+
 def test_every_example_is_tested_and_listed(test, device):
     package = importlib.import_module("newton.examples.fluid")
     here = Path(next(iter(package.__path__)))
@@ -152,6 +242,8 @@ add_function_test(
     devices=[wp.get_device("cpu")],
     check_output=False,
 )
+for _test in (test_still_without_video, test_run_shows_progress_and_summary, test_readme_commands_and_flags_exist):
+    add_function_test(TestFluidExamples, _test.__name__, _test, devices=[wp.get_device("cpu")], check_output=False)
 add_function_test(
     TestFluidExamples, "test_readme_listings_run", test_readme_listings_run, devices=devices, check_output=False
 )

@@ -280,7 +280,7 @@ def _free_port():
 
 
 def test_log_fluid_every_viewer(test, device):
-    """Every non-GL viewer takes every log_fluid call and draws the batch as points in its colour."""
+    """Every non-GL viewer takes every log_fluid call: USD as a surface mesh in the batch colour, the rest too."""
     import tempfile  # noqa: PLC0415
 
     builder = newton.ModelBuilder()
@@ -342,13 +342,16 @@ def test_log_fluid_every_viewer(test, device):
                         viewer.log_fluid("/other", None)
                     viewer.end_frame()
                 viewer.close()
-        from pxr import Usd, UsdGeom  # noqa: PLC0415
+        from pxr import Usd, UsdGeom, UsdShade  # noqa: PLC0415
 
         stage = Usd.Stage.Open(os.path.join(tmp, "fluid.usda"))
         prims = [p for p in stage.Traverse() if p.GetName() == "fluid"]
         test.assertEqual(len(prims), 1, [str(p.GetPath()) for p in stage.Traverse()])
-        colors = UsdGeom.Gprim(prims[0]).GetDisplayColorAttr().Get(Usd.TimeCode(0))
-        np.testing.assert_allclose(np.asarray(colors)[0], color[:3], atol=1.0e-6)
+        test.assertTrue(prims[0].IsA(UsdGeom.Mesh))
+        material, _ = UsdShade.MaterialBindingAPI(prims[0]).ComputeBoundMaterial()
+        shader = material.ComputeSurfaceSource()[0]
+        np.testing.assert_allclose(shader.GetInput("diffuseColor").Get(), color[:3], atol=1.0e-6)
+        test.assertAlmostEqual(shader.GetInput("ior").Get(), 1.4, places=5)
 
 
 def test_log_fluid_draws_points_with_batch_color(test, device):

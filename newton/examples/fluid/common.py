@@ -85,8 +85,12 @@ class FluidExample:
 
     fps = 60
     sim_substeps = 8
-    #: default of ``--particle-count``
+    #: default of ``--particle-count`` on a GPU
     default_particle_count = 100_000
+    #: default of ``--particle-count`` on a CPU (a few frames per second on two cores)
+    cpu_particle_count = 5_000
+    #: what ``--particle-count`` counts
+    particle_count_help = "Approximate fluid particle count"
 
     def __init__(self, viewer):
         self.viewer = viewer
@@ -134,11 +138,19 @@ class FluidExample:
 
     @classmethod
     def create_parser(cls):
-        """Newton's example arguments, the capture arguments and ``--particle-count``."""
+        """Newton's example arguments, the capture arguments and ``--particle-count``.
+
+        ``--particle-count`` defaults to ``None``: the entry point chooses ``default_particle_count`` on a GPU
+        and ``cpu_particle_count`` on a CPU (:func:`~newton.examples.fluid.capture.choose_particle_count`).
+        """
         parser = newton.examples.create_parser()
         add_capture_arguments(parser)
         parser.add_argument(
-            "--particle-count", type=int, default=cls.default_particle_count, help="Approximate fluid particle count."
+            "--particle-count",
+            type=int,
+            default=None,
+            help=f"{cls.particle_count_help}; default {cls.default_particle_count:,} on a GPU, "
+            f"{cls.cpu_particle_count:,} on a CPU.",
         )
         return parser
 

@@ -93,6 +93,8 @@ def turn_screw(
 
 class Example(FluidExample):
     default_particle_count = 130_000
+    # the screw's flights need about this many to carry water
+    cpu_particle_count = 6_000
 
     def __init__(self, viewer, args):
         super().__init__(viewer)

@@ -23,7 +23,6 @@ import warp as wp
 
 import newton
 import newton.examples
-from newton.examples.fluid.capture import add_capture_arguments
 from newton.examples.fluid.capture import main as capture_or_run
 from newton.examples.fluid.common import FluidExample, add_tank
 
@@ -51,6 +50,8 @@ def offset_by_world(
 
 
 class Example(FluidExample):
+    particle_count_help = "Fluid particles over all worlds"
+
     def __init__(self, viewer, args):
         super().__init__(viewer)
         self.world_count = args.world_count
@@ -136,13 +137,11 @@ class Example(FluidExample):
             # one's (2.5x once settled), which a shared pool would even out
             assert mean_height[3] > 1.5 * mean_height[0], mean_height[:4]
 
-    @staticmethod
-    def create_parser():
-        parser = newton.examples.create_parser()
-        add_capture_arguments(parser)
+    @classmethod
+    def create_parser(cls):
+        parser = super().create_parser()
         newton.examples.add_world_count_arg(parser)
         parser.set_defaults(world_count=16)
-        parser.add_argument("--particle-count", type=int, default=100_000, help="Fluid particles over all worlds.")
         return parser
 
 

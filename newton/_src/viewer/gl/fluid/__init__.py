@@ -2,13 +2,14 @@
 # SPDX-License-Identifier: Apache-2.0
 
 """``viewer.log_fluid`` and ``viewer.log_fluid_diffuse``: a fluid surface and foam sprites in ViewerGL,
-points in the batch colour everywhere else.
+a surface mesh in the USD, Rerun and Viser viewers, points in the batch colour everywhere else.
 
 :func:`activate` is the one place that extends the upstream viewers: it adds ``log_fluid`` to
-``ViewerBase`` (the point fallback every viewer inherits), overrides it on ``ViewerGL`` with the
-screen-space surface of :mod:`.renderer`, adds the ``ViewerGL.fluid_surface`` toggle and the
-``ViewerGL.fluid_renderer`` accessor, and wraps ``RendererGL.render`` so that the fluid is
-composited after the scene.
+``ViewerBase`` (the point fallback every viewer inherits), overrides its drawing on ``ViewerGL`` with
+the screen-space surface of :mod:`.renderer` and on ``ViewerUSD`` (and so ``ViewerRTX``),
+``ViewerRerun`` and ``ViewerViser`` with the extracted mesh of :mod:`.surface_mesh`, adds the
+``fluid_surface`` toggle to those viewers and the ``ViewerGL.fluid_renderer`` accessor, and wraps
+``RendererGL.render`` so that the fluid is composited after the scene.
 """
 
 from __future__ import annotations
@@ -28,7 +29,12 @@ _CLASS_NAMES = {
     "ViewerBase": ("log_points", "_qualify"),
     "ViewerGL": ("log_points", "_qualify", "set_model"),
     "RendererGL": ("render", "_make_current", "gl"),
+    "ViewerUSD": ("log_mesh", "_get_path", "_qualify"),
+    "ViewerRerun": ("log_mesh",),
+    "ViewerViser": ("log_mesh",),
 }
+# the viewers that draw log_fluid as an extracted surface mesh
+_MESH_VIEWERS = ("ViewerUSD", "ViewerRerun", "ViewerViser")
 _RENDERER_NAMES = (
     "_frame_fbo",
     "_frame_texture",
@@ -60,7 +66,8 @@ def check_upstream(viewer_module) -> None:
     """Raise ``RuntimeError`` naming the versions if an upstream viewer name we extend is missing."""
     from newton._src.viewer.gl.opengl import RendererGL  # noqa: PLC0415
 
-    classes = {"ViewerBase": viewer_module.ViewerBase, "ViewerGL": viewer_module.ViewerGL, "RendererGL": RendererGL}
+    classes = {name: getattr(viewer_module, name) for name in ("ViewerBase", "ViewerGL", *_MESH_VIEWERS)}
+    classes["RendererGL"] = RendererGL
     missing = [f"{c}.{n}" for c, names in _CLASS_NAMES.items() for n in names if not hasattr(classes[c], n)]
     if missing:
         raise _upstream_error(missing)
@@ -132,8 +139,12 @@ def log_fluid(
 
     ViewerGL draws each batch as a screen-space liquid surface (ray-cast ellipsoids, smoothed
     depth, refraction, Beer-Lambert absorption, Fresnel reflection), with the batches of a frame
-    occluding each other and the scene correctly; with ``viewer.fluid_surface = False``, and in
-    every other viewer, the particles are drawn as points in the batch colour.
+    occluding each other and the scene correctly. ViewerUSD (and ViewerRTX), ViewerRerun and
+    ViewerViser draw it as a triangle mesh extracted by :class:`newton.geometry.ParticleSurface`
+    (in USD a time-sampled ``Mesh`` prim per batch with a ``UsdPreviewSurface`` carrying colour,
+    opacity, ``ior`` and ``absorption``; see :mod:`newton._src.viewer.gl.fluid.surface_mesh`). With
+    ``viewer.fluid_surface = False``, and in every other viewer, the particles are drawn as points in
+    the batch colour.
 
     Args:
         name: Unique path of the batch; logging the same name again replaces it (the particle
@@ -142,7 +153,8 @@ def log_fluid(
         radii: Per-particle radii [m] (``wp.array`` of float) or one radius for all; ``None``: 0.1 m.
             A particle of radius r stands for a cube of fluid of edge 2r (Newton's particle
             spacing), which calibrates the thickness.
-        radius_scale: Multiplier of ``radii`` for the drawn ellipsoids [dimensionless], in (0, inf).
+        radius_scale: Multiplier of ``radii`` for the drawn ellipsoids and points [dimensionless], in (0, inf)
+            (an extracted surface mesh takes ``radii`` as they are: they set the fluid's volume).
         color: RGB or RGBA in [0, 1]: the colour the fluid scatters toward the eye, weighted by alpha
             (0: clear, 1: milky); also the transmitted tint when ``absorption`` is None.
         absorption: Absorption coefficients sigma_a [1/m] per channel for Beer-Lambert transmission
@@ -204,6 +216,26 @@ def _log_fluid_points(viewer, name, positions, radii, radius_scale, color, hidde
     # one colour per point: not every viewer's log_points takes a single RGB triple
     colors = wp.full(len(positions), rgb, dtype=wp.vec3, device=positions.device)
     viewer.log_points(name, positions, radii=radii, colors=colors, hidden=hidden)
+
+
+def _fluid_draw_mesh(self, name, positions, radii, material, axes, hidden):
+    """ViewerUSD, ViewerRerun, ViewerViser: the extracted surface as a dynamic mesh (points when switched off)."""
+    from .surface_mesh import draw_surface_mesh, hide_surface_mesh  # noqa: PLC0415
+
+    if self.fluid_surface:
+        if not draw_surface_mesh(self, name, positions, radii, material, axes, hidden):
+            # no surface this frame (every particle apart from the rest): hide the last one
+            hide_surface_mesh(self, name)
+        return
+    hide_surface_mesh(self, name)
+    _log_fluid_points(self, name + "_points", positions, radii, material.radius_scale, material.color, hidden)
+
+
+def _fluid_remove_mesh(self, name):
+    from .surface_mesh import hide_surface_mesh  # noqa: PLC0415
+
+    hide_surface_mesh(self, name)
+    self.log_points(name + "_points", None, hidden=True)
 
 
 def _fluid_remove_gl(self, name):
@@ -390,6 +422,15 @@ def activate(viewer_module) -> None:
         base.log_fluid, base._fluid_draw, base._fluid_remove = log_fluid, _fluid_draw, _fluid_remove
         base.log_fluid_diffuse = log_fluid_diffuse
         base._fluid_draw_diffuse, base._fluid_remove_diffuse = _fluid_draw_diffuse, _fluid_remove_diffuse
+    for mesh_name in _MESH_VIEWERS:
+        mesh_viewer = getattr(viewer_module, mesh_name)
+        if "_fluid_draw" not in vars(mesh_viewer):
+            mesh_viewer._fluid_draw, mesh_viewer._fluid_remove = _fluid_draw_mesh, _fluid_remove_mesh
+            mesh_viewer.fluid_surface = property(
+                _fluid_surface_get,
+                _fluid_surface_set,
+                doc="Draw ``log_fluid`` batches as an extracted surface mesh (True, default) or as points (False).",
+            )
     gl_viewer = viewer_module.ViewerGL
     if not getattr(gl_viewer, "_newton_fluid_gl", False):
         gl_viewer._newton_fluid_gl = True
