@@ -23,12 +23,12 @@ import statistics
 import tempfile
 import time
 
+import newton.viewer
 import numpy as np
 import warp as wp
 from run_record import machine_record
 
 import newton
-import newton.viewer
 from newton._src.viewer.gl.fluid.surface_mesh import FluidSurfaceMeshes
 from newton.examples.fluid.example_fluid_xpbd_dam_break import Example
 from newton.examples.fluid.progress import FluidProgress

@@ -102,7 +102,6 @@ class FluidSurfaceMeshes:
         return mesh.to_arrays()
 
 
-
 def surface_meshes(viewer) -> FluidSurfaceMeshes:
     """The :class:`FluidSurfaceMeshes` of ``viewer`` (created on first use)."""
     meshes = getattr(viewer, "_newton_fluid_meshes", None)
