@@ -22,12 +22,15 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import sys
 from pathlib import Path
 
 import numpy as np
 from run_record import machine_record
+
+from newton.examples.fluid.progress import track
 
 
 def run_one(per_l: int, iterations: int, args, device) -> dict:
@@ -152,12 +155,11 @@ def main(argv=None):
         f"{'layers':>7}{'iters':>6}{'particles':>10}{'gH/c^2':>8}{'held':>6}{'outside':>8}{'through':>8}{'max c':>8}"
         f"{'top sank':>9}"
     )
-    for per_l in args.per_l:
-        for iterations in args.iterations:
-            r = run_one(per_l, iterations, args, device)
-            result["runs"].append(r)
-            if args.json:
-                Path(args.json).write_text(json.dumps(result, indent=1))
+    for per_l, iterations in track(list(itertools.product(args.per_l, args.iterations)), "column_depth"):
+        r = run_one(per_l, iterations, args, device)
+        result["runs"].append(r)
+        if args.json:
+            Path(args.json).write_text(json.dumps(result, indent=1))
             print(
                 f"{r['layers']:>7}{r['iterations']:>6}{r['particles']:>10}{100 * r['estimate_gH_over_c2']:>7.1f}%"
                 f"{'yes' if r['held'] else 'no':>6}{r['particles_outside']:>8}{r['particles_through_walls']:>8}"

@@ -33,6 +33,7 @@ import newton
 from newton._src.solvers.xpbd.fluid import neighbors, solver_fluid
 from newton._src.solvers.xpbd.fluid.solver_fluid import wall_density_tables
 from newton.examples.fluid.example_fluid_xpbd_dam_break import TANK_HALF_LENGTH, add_dam_break
+from newton.examples.fluid.progress import track
 
 
 def poly6(r2: np.ndarray, h: float) -> np.ndarray:
@@ -294,7 +295,8 @@ def run(args) -> dict:
         breakdown = kernel_breakdown(simulate, device) if args.kernel_timing and device.is_cuda else []
 
         trials, errors = [], []
-        for _ in range(args.trials):
+        # (the progress line counts trials: nothing of it runs inside a timed trial)
+        for _ in track(range(args.trials), "dam_break", unit="trial"):
             wp.synchronize_device(device)
             t0 = time.perf_counter()
             for _ in range(args.frames):

@@ -21,6 +21,7 @@ solver's own measure) and the wall time per frame.
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import time
 from pathlib import Path
@@ -31,6 +32,7 @@ from run_record import machine_record
 
 import newton
 from newton.examples.fluid.common import add_tank
+from newton.examples.fluid.progress import track
 
 POOL_HALF = 0.5  # inner half-width of the square pool [m]
 DEPTH = 0.4  # water depth at rest spacing [m]
@@ -141,16 +143,15 @@ def main(argv=None):
         f"{'spacing':>8}{'box/h':>7}{'density':>9}{'particles':>10}{'draft':>8}{'Archimedes':>11}{'error':>8}"
         f"{'spread':>8}{'mean c':>8}{'ms/frame':>10}"
     )
-    for spacing in args.spacings:
-        for density in args.densities:
-            r = run(spacing, density, args, device)
-            runs.append(r)
-            print(
-                f"{spacing:>8.4f}{r['box_height_spacings']:>7.1f}{density:>9.0f}{r['particles']:>10}"
-                f"{r['draft_m']:>8.4f}{r['archimedes_draft_m']:>11.4f}{100.0 * r['draft_relative_error']:>7.1f}%"
-                f"{r['box_centre_spread_m']:>8.4f}{100.0 * r['mean_compression']:>7.2f}%{r['ms_per_frame']:>10.1f}",
-                flush=True,
-            )
+    for spacing, density in track(list(itertools.product(args.spacings, args.densities)), "floating_box"):
+        r = run(spacing, density, args, device)
+        runs.append(r)
+        print(
+            f"{spacing:>8.4f}{r['box_height_spacings']:>7.1f}{density:>9.0f}{r['particles']:>10}"
+            f"{r['draft_m']:>8.4f}{r['archimedes_draft_m']:>11.4f}{100.0 * r['draft_relative_error']:>7.1f}%"
+            f"{r['box_centre_spread_m']:>8.4f}{100.0 * r['mean_compression']:>7.2f}%{r['ms_per_frame']:>10.1f}",
+            flush=True,
+        )
     result = {
         "benchmark": "floating_box",
         **machine_record(device),

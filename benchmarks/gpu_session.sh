@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/performance.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|surge|diffuse|render|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|surge|diffuse|render|usd|gallery|gltests|tests]...
 set -u
 out=${1:?output folder}; shift
 export PYTHONUNBUFFERED=1
@@ -92,8 +92,13 @@ for what in "$@"; do
       # the image tests on NVIDIA's GL (the resize test needs Xvfb, which GPU machines lack); the
       # CUDA variant of the compute/raster comparison goes through CUDA-GL shared buffers there
       python3 -m pytest -q -rs newton/tests/test_fluid_render_gl.py -k "not resize" 2>&1 | tail -15 ;;
+    usd)
+      # log_fluid's surface mesh (ViewerUSD): the extraction's cost at the dam break's 100k particles
+      # (docs/performance.md, "Surface mesh"); needs usd-core (pxr), else add --no-usd for the timing alone
+      python3 benchmarks/usd_surface.py --frames 30 --json "$out/usd_surface_100k_${gpu}.json" 2>&1 | grep -v '^Module' ;;
     tests)
       python3 -m pytest -q -k cuda newton/tests/test_solver_xpbd_fluid.py newton/tests/test_fluid_examples.py \
+        newton/tests/test_fluid_surface_mesh.py \
         newton/tests/test_fluid_extension.py newton/tests/test_fluid_diffuse.py newton/tests/test_fluid_render_particles.py \
         newton/tests/test_fluid_validation.py newton/tests/test_fluid_picking.py newton/tests/test_fluid_stress.py \
         2>&1 | tail -25 ;;

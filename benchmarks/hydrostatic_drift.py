@@ -27,6 +27,7 @@ from run_record import machine_record
 
 import newton
 from newton.examples.fluid.common import add_tank
+from newton.examples.fluid.progress import track
 
 D = 0.1  # spacing [m]
 
@@ -120,7 +121,7 @@ def main(argv=None):
     start = solver.fluid_diagnostics(states[0])
     # the fastest particle while settling, sampled every frame (a start far from rest throws particles)
     settle_max_speed = 0.0
-    for _ in range(int(round(args.settle * 60.0))):
+    for _ in track(range(int(round(args.settle * 60.0))), "hydrostatic_drift: settling", unit="frame"):
         run(1.0 / 60.0)
         settle_max_speed = max(settle_max_speed, float(np.linalg.norm(states[0].particle_qd.numpy(), axis=1).max()))
     print(
@@ -135,7 +136,7 @@ def main(argv=None):
     # (a start far from rest can throw particles over the walls of the open tank)
     inside = np.all((settled[:, :2] > 0.0) & (settled[:, :2] < w), axis=1) & (settled[:, 2] > 0.0)
     rows = []
-    for k in range(args.seconds):
+    for k in track(range(args.seconds), "hydrostatic_drift: measuring", unit="second"):
         run(1.0)
         q = states[0].particle_q.numpy().astype(np.float64)
         disp = np.linalg.norm(q - settled, axis=1) / D

@@ -105,6 +105,8 @@ def run_xpbd(args, L: float, times: np.ndarray) -> dict:
     import validate_dam_break as validate  # noqa: PLC0415
     import warp as wp  # noqa: PLC0415
 
+    from newton.examples.fluid.progress import track  # noqa: PLC0415
+
     wp.config.quiet = True
     device = wp.get_device(args.device)
     d = L / args.per_l
@@ -117,7 +119,7 @@ def run_xpbd(args, L: float, times: np.ndarray) -> dict:
     stepper = validate.Stepper(model, solver, pipeline, dt)
     rec.record(0.0, stepper.state.particle_q.numpy(), stepper.state.particle_qd.numpy())
     wall = 0.0
-    for target in times:
+    for target in track(times, "reference_dfsph: XPBD", unit="sample"):
         t0 = time.perf_counter()
         state = stepper.advance_to(target)
         wp.synchronize_device(device)
@@ -225,6 +227,10 @@ def run_dfsph(args, L: float, times: np.ndarray, h: float) -> dict:
     rec.record(0.0, *state())
     pending = list(times)
     counters = {"steps": 0, "sampling_s": 0.0}
+    # (imported after SPlisHSPlasH, like everything that imports Warp: see main)
+    from newton.examples.fluid.progress import FluidProgress  # noqa: PLC0415
+
+    progress = FluidProgress(len(pending), "reference_dfsph: DFSPH", unit="sample")
 
     def on_step():
         counters["steps"] += 1
@@ -234,11 +240,13 @@ def run_dfsph(args, L: float, times: np.ndarray, h: float) -> dict:
             rec.record(t, *state())
             counters["sampling_s"] += time.perf_counter() - t0
             pending.pop(0)
+            progress.update()
 
     base.setTimeStepCB(on_step)
     t0 = time.perf_counter()
     base.runSimulation()
     wall = time.perf_counter() - t0 - counters["sampling_s"]
+    progress.close()
     base.cleanup()
     sim_t = rec.rows[-1]["t"]
     return {

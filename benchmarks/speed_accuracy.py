@@ -36,6 +36,8 @@ from pathlib import Path
 import numpy as np
 from run_record import machine_record
 
+from newton.examples.fluid.progress import track
+
 
 def run_one(args, device, substeps: int, iterations: int, tolerance: float, passes: int = 1) -> dict:
     # benchmarks/ is on the path of a script run from it
@@ -147,7 +149,7 @@ def sweep(args) -> dict:
         "scene": "Koshizuka & Oka 2:1 dam break, tank 5L, no cohesion/viscosity/speed clamp, 60 Hz frames",
         "runs": runs,
     }
-    for config in configs:
+    for config in track(configs, "speed_accuracy"):
         r = run_one(args, device, *config)
         runs.append(r)
         if args.json:

@@ -20,6 +20,7 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import sys
 import time
@@ -31,6 +32,7 @@ from run_record import machine_record
 
 import newton
 from newton.examples.fluid.common import add_closed_tank
+from newton.examples.fluid.progress import track
 
 FLUID = int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID)
 
@@ -209,20 +211,19 @@ def main(argv=None):
         device = wp.get_device(args.device)
         runs = []
         t0 = time.perf_counter()
-        for it in args.iterations:
-            for speed in args.speeds:
-                for substeps in sorted(args.substeps, reverse=True):
-                    r = run_one(args, device, substeps, it, speed)
-                    runs.append(r)
-                    print(
-                        f"iterations {it} speed {speed:5.1f} m/s substeps {substeps:3d}: "
-                        f"{'stable' if r['stable'] else 'UNSTABLE: ' + r['failure']} "
-                        f"(penetration {r['max_wall_penetration_spacings']:.2f}, fast {r['fast_particle_substeps']})",
-                        flush=True,
-                    )
-                    if not r["stable"]:
-                        # fewer substeps only fail harder: record them as not run
-                        break
+        sweep = list(itertools.product(args.iterations, args.speeds, sorted(args.substeps, reverse=True)))
+        for it, speed, substeps in track(sweep, "stability_map"):
+            r = run_one(args, device, substeps, it, speed)
+            runs.append(r)
+            print(
+                f"iterations {it} speed {speed:5.1f} m/s substeps {substeps:3d}: "
+                f"{'stable' if r['stable'] else 'UNSTABLE: ' + r['failure']} "
+                f"(penetration {r['max_wall_penetration_spacings']:.2f}, fast {r['fast_particle_substeps']})",
+                flush=True,
+            )
+            if not r["stable"]:
+                # fewer substeps only fail harder: record them as not run
+                break
         result = {
             "benchmark": "stability_map",
             **machine_record(device),

@@ -25,6 +25,8 @@ import numpy as np
 import warp as wp
 from run_record import machine_record
 
+from newton.examples.fluid.progress import track
+
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -58,7 +60,8 @@ def main(argv=None):
     stepper = validate.Stepper(model, solver, pipeline, dt)
     rows = []
     passes_before = 0
-    for frame in range(args.every, int(round(args.seconds * 60.0)) + 1, args.every):
+    samples = range(args.every, int(round(args.seconds * 60.0)) + 1, args.every)
+    for frame in track(samples, "tolerance_demand", unit="sample"):
         state = stepper.advance_to(frame / 60.0)
         stats = solver.fluid_diagnostics(state)
         speed = np.linalg.norm(state.particle_qd.numpy().astype(np.float64), axis=1)

@@ -8,6 +8,7 @@ through ``ViewerUSD`` (one time-sampled ``Mesh`` prim for the water, extracted e
 ``ParticleSurface`` from the render particles), then times the extraction alone at the last frame
 (median of ``--repeats``, synchronised: the extraction sizes its mesh on the host), reads the last
 frame's mesh back from the file with ``pxr`` and, with ``--png``, draws it in a headless ViewerGL.
+``--no-usd`` simulates without writing USD (the timing alone, where ``pxr`` is missing).
 
 Usage::
 
@@ -34,8 +35,11 @@ from newton.examples.fluid.example_fluid_xpbd_dam_break import Example
 from newton.examples.fluid.progress import FluidProgress
 
 
-def record(args, usd_path: str, device) -> dict:
-    viewer = newton.viewer.ViewerUSD(usd_path, num_frames=args.frames)
+def record(args, usd_path: str | None, device) -> dict:
+    if usd_path is None:
+        viewer = newton.viewer.ViewerNull(num_frames=args.frames)
+    else:
+        viewer = newton.viewer.ViewerUSD(usd_path, num_frames=args.frames)
     example = Example(viewer, argparse.Namespace(particle_count=args.particles))
     solver, model = example.solver, example.model
     progress = FluidProgress(
@@ -119,6 +123,9 @@ def main(argv=None):
     parser.add_argument("--repeats", type=int, default=10)
     parser.add_argument("--device", default=None)
     parser.add_argument("--usd", default=None, help="USD file to write (default: a temporary file)")
+    parser.add_argument(
+        "--no-usd", action="store_true", help="simulate without writing USD (no pxr needed): the timing only"
+    )
     parser.add_argument("--png", default=None, help="draw the last frame's mesh into this PNG")
     parser.add_argument("--size", type=int, nargs=2, default=[1280, 720], metavar=("W", "H"))
     parser.add_argument("--json", default=None)
@@ -127,9 +134,9 @@ def main(argv=None):
     wp.config.quiet = True
     device = wp.get_device(args.device)
     with tempfile.TemporaryDirectory() as tmp, wp.ScopedDevice(device):
-        usd_path = args.usd or os.path.join(tmp, "dam_break.usda")
+        usd_path = None if args.no_usd else args.usd or os.path.join(tmp, "dam_break.usda")
         result = record(args, usd_path, device)
-        if args.png:
+        if args.png and usd_path is not None:
             draw(usd_path, args.png, tuple(args.size))
     print(f"{'device':<24}{'particles':>10}{'substeps':>9}{'iters':>6}{'density err':>12}{'extract ms':>11}{'tris':>9}")
     print(

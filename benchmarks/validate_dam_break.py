@@ -34,6 +34,7 @@ import warp as wp
 from run_record import machine_record
 
 import newton
+from newton.examples.fluid.progress import track
 
 DATA = Path(__file__).resolve().parent / "data" / "dam_break_koshizuka_oka_1996.json"
 L = 0.146  # column width [m] (Koshizuka & Oka's, after Martin & Moyce)
@@ -227,7 +228,7 @@ def main(argv=None):
     points = np.asarray(data["points"], dtype=np.float64)
     wp.init()
     device = wp.get_device(args.device)
-    runs = [run(n, args, points, device) for n in args.resolutions]
+    runs = [run(n, args, points, device) for n in track(args.resolutions, "validate_dam_break")]
     print(f"{'T':>6} {'Z exp':>7} " + " ".join(f"{'Z @' + str(r['particles_per_L']):>9} {'err':>7}" for r in runs))
     for k, (t_value, z_exp) in enumerate(points):
         cells = " ".join(f"{r['Z_simulated'][k]:9.3f} {100 * r['relative_error'][k]:6.1f}%" for r in runs)

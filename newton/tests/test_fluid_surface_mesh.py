@@ -190,11 +190,16 @@ class TestFluidSurfaceMesh(unittest.TestCase):
 
 
 devices = get_test_devices()
-for _name, _func in list(globals().items()):
-    if _name.startswith("test_") and callable(_func):
-        # the web viewers print their addresses
-        check_output = _name != "test_mesh_viewers_log_the_surface"
-        add_function_test(TestFluidSurfaceMesh, _name, _func, devices=devices, check_output=check_output)
+# the web viewers' test runs their servers once (on the CPU), and they print their addresses
+add_function_test(
+    TestFluidSurfaceMesh,
+    "test_mesh_viewers_log_the_surface",
+    test_mesh_viewers_log_the_surface,
+    devices=[wp.get_device("cpu")],
+    check_output=False,
+)
+for _func in (test_usd_writes_a_closed_surface_of_the_pool_volume, test_surface_off_draws_points):
+    add_function_test(TestFluidSurfaceMesh, _func.__name__, _func, devices=devices)
 
 if __name__ == "__main__":
     unittest.main(verbosity=2)
