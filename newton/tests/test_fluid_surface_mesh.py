@@ -14,6 +14,7 @@ from newton.tests.unittest_utils import add_function_test, get_test_devices
 
 import newton
 from newton.examples.fluid.common import WATER, add_tank
+from newton.tests.test_fluid_extension import _free_port
 
 SPACING = 0.05  # [m]
 POOL = (8, 8, 5)  # particles
@@ -141,14 +142,6 @@ def test_surface_off_draws_points(test, device):
         test.assertEqual(len(points), 1)
         colors = UsdGeom.Gprim(points[0]).GetDisplayColorAttr().Get(Usd.TimeCode(1))
         np.testing.assert_allclose(np.asarray(colors)[0], (0.9, 0.3, 0.1), atol=1.0e-6)
-
-
-def _free_port():
-    import socket  # noqa: PLC0415
-
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
 
 
 def test_mesh_viewers_log_the_surface(test, device):

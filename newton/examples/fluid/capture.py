@@ -193,6 +193,8 @@ def main(example_class, scene: str) -> None:
 
     parser = example_class.create_parser()
     args = parser.parse_args()
+    if args.still_frame is not None and not args.capture_still:
+        raise ValueError(f"still_frame={args.still_frame!r} is invalid without --capture-still: name the PNG to write")
     if args.capture or args.capture_still:
         choose_particle_count(example_class, args)
         capture(example_class, args, scene)
