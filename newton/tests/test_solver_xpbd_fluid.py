@@ -1097,6 +1097,63 @@ def test_fluid_collides_with_granular_particles(test, device):
     test.assertGreater(np.linalg.norm(q[:27] - q[27], axis=1).min(), 0.8 * D)
 
 
+def test_non_fluid_particles_step_as_without_fluid(test, device):
+    # granular particles (friction and cohesion between them) falling on a cloth over the ground step
+    # as stock Newton steps them, whether or not the model also holds fluid elsewhere: the fluid's
+    # contact kernel skips only fluid-fluid pairs and applies upstream's law to every other pair
+    # (bitwise on the CPU; on CUDA the atomics may reorder the cloth's sums)
+    def build(b, fluid):
+        b.add_cloth_grid(
+            pos=wp.vec3(-0.3, -0.3, 0.2),
+            rot=wp.quat_identity(),
+            vel=wp.vec3(0.0),
+            dim_x=6,
+            dim_y=6,
+            cell_x=0.1,
+            cell_y=0.1,
+            mass=0.05,
+            fix_left=True,
+            fix_right=True,
+            particle_radius=0.5 * D,
+        )
+        add_block(b, (3, 3, 3), origin=(-0.1, -0.1, 0.45), vel=(0.3, 0.0, -1.0), jitter=0.01)
+        granular = b.particle_count
+        for k in range(granular - 27, granular):
+            b.particle_flags[k] &= ~int(newton.ParticleFlags.FLUID)
+        if fluid:
+            # a fluid block far from the rest (after it: the other particles keep their indices)
+            add_block(b, (3, 3, 3), origin=(3.0, 3.0, 0.05))
+        b.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(mu=0.5))
+
+    runs = []
+    for fluid in (False, True):
+        model = make_model(device, lambda b, fluid=fluid: build(b, fluid), gravity=-9.81)
+        model.particle_mu = 0.6
+        model.particle_cohesion = 0.02
+        solver_kwargs = {"fluid_rest_distance": D} if fluid else {}
+        solver = newton.solvers.SolverXPBD(model, iterations=2, **solver_kwargs)
+        test.assertEqual(solver._fluid is not None, fluid)
+        pipeline = newton.CollisionPipeline(model, soft_contact_gap=0.5 * D)
+        contacts = pipeline.contacts()
+        state_0, state_1 = model.state(), model.state()
+        for _ in range(40):
+            pipeline.collide(state_0, contacts)
+            solver.step(state_0, state_1, None, contacts, 1.0 / 240.0)
+            state_0, state_1 = state_1, state_0
+        n = 36 + 27
+        runs.append((state_0.particle_q.numpy()[:n], state_0.particle_qd.numpy()[:n]))
+    (q0, v0), (q1, v1) = runs
+    # the granular block landed on the cloth and pressed into it, grains touching grains
+    test.assertLess(q0[36:, 2].min(), 0.3)
+    test.assertTrue(np.isfinite(q0).all())
+    if wp.get_device(device).is_cuda:
+        np.testing.assert_allclose(q1, q0, rtol=0.0, atol=1.0e-5)
+        np.testing.assert_allclose(v1, v0, rtol=0.0, atol=1.0e-3)
+    else:
+        np.testing.assert_array_equal(q1, q0)
+        np.testing.assert_array_equal(v1, v0)
+
+
 def test_concurrent_passes_match_one_stream(test, device):
     # on CUDA the sort and scan run on a second stream beside upstream's first contacts, and each next
     # density pass beside the application of the deltas and the next contacts, joined before anything

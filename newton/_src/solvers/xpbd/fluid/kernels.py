@@ -1006,9 +1006,14 @@ def solve_particle_particle_contacts_skip_fluid_pairs(
     """Particle contacts for models with fluid: a pair of two fluid particles is left to the density constraint.
 
     Same launch signature as :func:`newton._src.solvers.xpbd.kernels.solve_particle_particle_contacts`
-    (it is swapped in only while a fluid solver steps). Every other pair gets a position-level
-    non-penetration correction split by inverse mass, with Coulomb friction on the tangential
-    relative displacement of the substep.
+    (it is swapped in only while a fluid solver steps), and for every other pair upstream's contact law
+    in upstream's order of operations, so that granular particles and cloth step bitwise as without
+    fluid. For a pair at distance ``d`` with gap ``e = d - r_i - r_j <= k_cohesion``, normal ``n`` and
+    tangential relative velocity ``v_t``, particle ``i`` moves by
+
+        w_i * relaxation * sum_j (normalize(v_t) * max(mu * e, -|v_t| dt) - n * e) / (w_i + w_j)
+
+    (inside the cohesion band, ``e > 0``, the friction term is upstream's too).
     """
     tid = wp.tid()
     i = wp.hash_grid_point_id(grid, tid)
@@ -1020,10 +1025,9 @@ def solve_particle_particle_contacts_skip_fluid_pairs(
     fluid_i = (flags_i & ParticleFlags.FLUID) != 0
     proxy_i = (flags_i & ParticleFlags.PROXY) != 0
     xi = particle_x[i]
+    vi = particle_v[i]
     ri = particle_radius[i]
     wi = particle_invmass[i]
-    if wi == 0.0:
-        return
     correction = wp.vec3(0.0)
     query = wp.hash_grid_query(grid, xi, ri + max_radius + k_cohesion)
     j = int(0)
@@ -1035,23 +1039,17 @@ def solve_particle_particle_contacts_skip_fluid_pairs(
             continue
         if fluid_i and (flags_j & ParticleFlags.FLUID) != 0:
             continue
-        if proxy_i and ((flags_j & ParticleFlags.PROXY) != 0 or particle_invmass[j] == 0.0):
+        if proxy_i and ((flags_j & ParticleFlags.PROXY) != 0 or particle_invmass[j] <= 0.0):
             continue
         offset = xi - particle_x[j]
         dist = wp.length(offset)
         gap = dist - ri - particle_radius[j]
         w_sum = wi + particle_invmass[j]
-        if gap > k_cohesion or dist == 0.0 or w_sum == 0.0:
-            continue
-        n = offset / dist
-        # normal: close the gap, this particle taking its inverse-mass share
-        push = -gap * n
-        # friction: undo tangential relative motion of this substep, up to mu times the normal push
-        v_rel = particle_v[i] - particle_v[j]
-        slip = (v_rel - n * wp.dot(n, v_rel)) * dt
-        slip_len = wp.length(slip)
-        if slip_len > 0.0:
-            limit = k_mu * wp.abs(gap)
-            push -= slip * (wp.min(slip_len, limit) / slip_len)
-        correction += push / w_sum
-    wp.atomic_add(deltas, i, correction * (wi * relaxation))
+        if gap <= k_cohesion and w_sum > 0.0 and dist > 0.0:
+            n = offset / dist
+            v_rel = vi - particle_v[j]
+            normal = n * gap
+            v_t = v_rel - n * wp.dot(n, v_rel)
+            friction = wp.normalize(v_t) * wp.max(k_mu * gap, -wp.length(v_t) * dt)
+            correction += (friction - normal) / w_sum
+    wp.atomic_add(deltas, i, correction * wi * relaxation)
