@@ -32,6 +32,14 @@ def thrown_block(device, speed, wall_thickness):
     return model
 
 
+def report(sim):
+    """The solver's diagnostics at the current state and the messages of the warnings they gave."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        stats = sim.solver.fluid_diagnostics(sim.state_0)
+    return stats, [str(w.message) for w in caught]
+
+
 def assert_contained(test, q, edge=TANK):
     test.assertTrue(np.isfinite(q).all())
     # a centre more than one spacing inside a wall has left the fluid
@@ -157,8 +165,16 @@ def test_packed_at_half_spacing_expands_in_tank(test, device):
     # 8x the rest density at the start: the block spreads to many times its volume and calms down
     test.assertGreater(np.ptp(q[:, 0]) * np.ptp(q[:, 1]), 4.0 * extent0[0] * extent0[1])
     test.assertLess(np.sqrt(np.mean(np.sum(sim.qd() ** 2, axis=1))), 1.0)
-    stats = sim.solver.fluid_diagnostics(sim.state_0)
+    stats, messages = report(sim)
     test.assertLess(stats["mean_compression"], 0.05)
+    # the over-packed start is reported although it has long expanded: its peaks were kept on the device
+    test.assertGreater(stats["compressed_particle_substeps"], 0)
+    test.assertGreater(stats["peak_compression"], 1.0)
+    test.assertTrue(any("packed too tightly" in m for m in messages), messages)
+    test.assertTrue(any("substep is too long" in m for m in messages), messages)
+    # and once: the next report has nothing new
+    stats, messages = report(sim)
+    test.assertEqual((stats["compressed_particle_substeps"], messages), (0, []))
 
 
 def test_many_coincident_particles_separate_in_tank(test, device):
@@ -177,7 +193,10 @@ def test_many_coincident_particles_separate_in_tank(test, device):
     # every particle has left the point, and the cloud has spread to about the rest spacing
     test.assertGreater(nearest.min(), 0.0)
     test.assertGreater(np.median(nearest), 0.5 * D)
-    test.assertEqual(sim.solver.fluid_diagnostics(sim.state_0)["nonfinite_recovered"], 0)
+    stats, messages = report(sim)
+    test.assertEqual(stats["nonfinite_recovered"], 0)
+    test.assertTrue(any("packed too tightly" in m for m in messages), messages)
+    test.assertTrue(any("substep is too long" in m for m in messages), messages)
 
 
 def test_viscosity_one_moves_as_a_body(test, device):
@@ -231,7 +250,9 @@ def test_extreme_mass_ratio_bodies(test, device):
     test.assertLess(body_q[bodies[1], 2], 0.2)  # the heavy one is on the floor ...
     test.assertGreater(body_q[bodies[1], 2], 0.05)  # ... not through it
     test.assertGreater(q[:, 2].min(), 0.0)
-    test.assertEqual(sim.solver.fluid_diagnostics(sim.state_0)["nonfinite_recovered"], 0)
+    stats, messages = report(sim)
+    test.assertEqual(stats["nonfinite_recovered"], 0)
+    test.assertEqual(messages, [])
 
 
 def test_empty_and_inactive_fluid(test, device):

@@ -4,6 +4,7 @@
 """Physics of the position-based fluid in SolverXPBD (small scenes; CPU always, CUDA when present)."""
 
 import unittest
+import warnings
 
 import numpy as np
 import warp as wp
@@ -452,7 +453,9 @@ def brute_force_neighbors(q, h):
 def test_neighbor_cap(test, device):
     model = make_model(device, lambda b: add_block(b, (6, 6, 6), spacing=0.7 * D, jitter=0.1 * D))
     full = Sim(model)
-    stats = full.solver.fluid_diagnostics(full.state_0)
+    # packed at 0.7 spacings: about three times the rest density, and the diagnostics say so
+    with test.assertWarnsRegex(RuntimeWarning, "compressed by"):
+        stats = full.solver.fluid_diagnostics(full.state_0)
     expected = brute_force_neighbors(model.particle_q.numpy().astype(np.float64), full.solver.fluid_smoothing_length)
     test.assertAlmostEqual(stats["neighbors_mean"], expected.mean(), places=4)
     test.assertEqual(stats["neighbors_max"], expected.max())
@@ -673,7 +676,12 @@ def test_nonfinite_particles_recovered_and_counted(test, device):
         test.assertEqual(sim.solver.fluid_nonfinite_count.numpy()[0], 2)
         np.testing.assert_allclose(q_after[5], before[5], atol=1.0e-6)  # restored to its last finite position
         np.testing.assert_array_equal(sim.qd()[5], 0.0)
-        test.assertEqual(sim.solver.fluid_diagnostics(sim.state_0)["nonfinite_recovered"], 2)
+        with test.assertWarnsRegex(RuntimeWarning, "^2 fluid particles since the last report had a non-finite"):
+            test.assertEqual(sim.solver.fluid_diagnostics(sim.state_0)["nonfinite_recovered"], 2)
+        # once: the next report has no new recovery
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            test.assertEqual(sim.solver.fluid_diagnostics(sim.state_0)["nonfinite_recovered"], 2)
         # everything else continued as if nothing happened
         reference.step(1)
         others = np.setdiff1d(np.arange(model.particle_count), [5, 9])
@@ -732,6 +740,17 @@ def test_parameters_change_captured_graph(test, device):
     test.assertAlmostEqual(np.linalg.norm(qd - qd.mean(axis=0), axis=1).mean(), spread[0.8][0], places=5)
 
 
+def reported(test, sim):
+    """The diagnostics of an over-packed start: they warn that it was packed too tightly exactly when they count it."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        stats = sim.solver.fluid_diagnostics(sim.state_0)
+    packed = [str(w.message) for w in caught if "packed too tightly" in str(w.message)]
+    test.assertEqual(len(packed), int(stats["compressed_particle_substeps"] > 0), packed)
+    test.assertEqual(len(caught), len(packed), [str(w.message) for w in caught])
+    return stats
+
+
 def compressed_block(device):
     return make_model(device, lambda b: add_block(b, (6, 6, 6), spacing=0.9 * D, jitter=0.05 * D))
 
@@ -748,12 +767,14 @@ def test_density_subiterations_and_tolerance(test, device):
         sim = Sim(model, substeps=1, iterations=1, **kwargs)
         q0 = sim.q()
         sim.step(1)  # one substep of one XPBD iteration: the density passes alone
-        stats = sim.solver.fluid_diagnostics(sim.state_0)
+        stats = reported(test, sim)
         results[name] = (stats, np.abs(sim.q() - q0).max())
     single, fixed, loose, tolerance = (results[k][0] for k in ("single", "fixed", "loose", "tolerance"))
     # three passes, each from where the last left the particles: less compression than one pass
     test.assertEqual(fixed["density_subiterations"], 3)
     test.assertLess(fixed["mean_compression"], 0.7 * single["mean_compression"])
+    # packed at 0.9 spacings (37 % over the rest density): one pass leaves particles past 10 %, reported
+    test.assertGreater(single["compressed_particle_substeps"], 0)
     # a tolerance above the compression: the first pass still corrects (a mean met by a mostly
     # under-dense fluid must not leave its compressed particles unsolved), no pass after it
     test.assertEqual(loose["density_subiterations"], 1)
@@ -809,7 +830,7 @@ def test_density_subiterations_see_the_walls_move(test, device):
     model.soft_contact_mu = 0.0
     sim = Sim(model, substeps=1, iterations=1, contacts=True, fluid_max_iterations=4)
     sim.step(1)
-    stats = sim.solver.fluid_diagnostics(sim.state_0)
+    stats = reported(test, sim)
     test.assertEqual(stats["density_subiterations"], 4)
     q = sim.q()
     h = sim.solver.fluid_smoothing_length
@@ -904,7 +925,7 @@ def test_tolerance_stops_xpbd_iterations(test, device):
         sim = Sim(model, substeps=1, **kwargs)
         q0 = sim.q()
         sim.step(1)
-        results[name] = (sim.solver.fluid_diagnostics(sim.state_0), np.abs(sim.q() - q0).max())
+        results[name] = (reported(test, sim), np.abs(sim.q() - q0).max())
     fixed, loose, tolerance = (results[k][0] for k in ("fixed", "loose", "tolerance"))
     # the substep's first pass always corrects: a tolerance above the compression leaves one iteration
     test.assertEqual(loose["density_subiterations"], 1)
@@ -922,7 +943,7 @@ def test_tolerance_stops_xpbd_iterations(test, device):
     sim.state_0.particle_q.assign(model.particle_q)
     sim.state_0.particle_qd.zero_()
     sim.step(1)
-    passes = sim.solver.fluid_diagnostics(sim.state_0)["density_subiterations"]
+    passes = reported(test, sim)["density_subiterations"]
     test.assertEqual(passes, 2 * tolerance["density_subiterations"])
     # it is decided on the device, so a captured graph replays the same result
     kwargs = {"iterations": 6, "fluid_density_tolerance": 0.02}

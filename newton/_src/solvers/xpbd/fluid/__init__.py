@@ -118,7 +118,11 @@ def fluid_diagnostics(self, state) -> dict:
     result of the last step, not a value from inside it) and synchronises with the device: call it
     when you need the numbers, not in the hot loop. Also fills :attr:`fluid_density`. Warns
     (``RuntimeWarning``) when the mean compression exceeds 5 %, more than the density solve holds
-    (a fluid too deep for its iterations and substeps), once until it falls below again.
+    (a fluid too deep for its iterations and substeps), once until it falls below again. What
+    happened between two calls is kept on the device and reported at the next one, however short
+    it lasted: particle substeps that ended their density solve more than 10 % compressed (an
+    over-packed start, an impact harder than the iterations hold), substeps faster than one rest
+    distance, and particles recovered from non-finite values each warn once with their count.
 
     Args:
         state: The state to measure, usually the ``state_out`` of the last step.
@@ -130,6 +134,8 @@ def fluid_diagnostics(self, state) -> dict:
         ``neighbors_mean``, ``neighbors_max``, ``neighbor_overflow`` (particles with more neighbours
         than are stored), ``candidates_mean`` (particles examined per neighbourhood search) and
         ``nonfinite_recovered`` (total count of recovered non-finite particles),
+        ``compressed_particle_substeps`` and ``peak_compression`` (particle substeps whose last density
+        pass found them more than 10 % compressed since the last call, and the largest such compression),
         ``density_subiterations`` (total density passes that corrected, with ``fluid_max_iterations`` > 1
         or a ``fluid_density_tolerance`` set at construction),
         ``fast_particle_substeps`` (particle substeps that ended with a velocity carrying the particle more

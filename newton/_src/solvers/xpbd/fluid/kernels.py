@@ -36,6 +36,9 @@ wp.set_module_options({"fast_math": True})
 COINCIDENT_FRACTION = 1.0e-5
 # bins of the compression sum of density sub-iterations: spreads the atomics over several addresses
 COMPRESSION_BINS = wp.constant(64)
+# a particle compressed by more than this (of rho/rho0 - 1) in a substep's last density pass is counted, and
+# the peak kept, on the device until the next fluid_diagnostics reports it (healthy flows stay well below)
+PEAK_COMPRESSION = wp.constant(0.1)
 # the bins' compression sums, then their particle counts
 COMPRESSION_SUMS = wp.constant(128)
 # ParticleApply.on: the correction pass writes the position SolverXPBD will apply, or the position
@@ -419,18 +422,23 @@ def compute_fluid_density_lambda(
     wall_table: wp.array[float],
     wall_table_grad: wp.array[float],
     track_compression: int,
+    track_peaks: int,
     # outputs
     density: wp.array[float],
     lambda_rho: wp.array[wp.vec2],
     wall_grad: wp.array[wp.vec3],
     compression_bins: wp.array[float],
+    peaks: wp.array[float],
 ):
     """Poly6 density and the Jacobi multiplier of the unilateral constraint C = max(rho/rho0 - 1, 0).
 
     The static walls listed for the slot add their share of ``rho / rho0`` (:func:`fluid_wall_share`);
     its gradient is kept in ``wall_grad`` for the correction. Does nothing while ``active[0]`` is 0.
     With ``track_compression``, also sums max(rho/rho0 - 1, 0) into ``compression_bins[0, B)`` and
-    counts the particles in ``[B, 2B)`` (``B = COMPRESSION_BINS``, spreading the atomics).
+    counts the particles in ``[B, 2B)`` (``B = COMPRESSION_BINS``, spreading the atomics). With
+    ``track_peaks`` (a substep's last pass), counts the particles compressed by more than
+    ``PEAK_COMPRESSION`` into ``peaks[0, B)`` and keeps their largest compression in ``peaks[B, 2B)``,
+    until :meth:`~.solver_fluid.FluidSolver.diagnostics` reads and clears them.
     """
     i = wp.tid()
     pi = slots.particle[i]
@@ -477,6 +485,12 @@ def compute_fluid_density_lambda(
         b = i % COMPRESSION_BINS
         wp.atomic_add(compression_bins, b, wp.max(rho * p.inv_rest_density - 1.0, 0.0))
         wp.atomic_add(compression_bins, COMPRESSION_BINS + b, 1.0)
+    if track_peaks != 0:
+        c = rho * p.inv_rest_density - 1.0
+        if c > PEAK_COMPRESSION:
+            b = i % COMPRESSION_BINS
+            wp.atomic_add(peaks, b, 1.0)
+            wp.atomic_max(peaks, COMPRESSION_BINS + b, c)
 
 
 @wp.func

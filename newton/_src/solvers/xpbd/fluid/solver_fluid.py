@@ -35,6 +35,7 @@ from .kernels import (
     COMPRESSION_BINS,
     COMPRESSION_SUMS,
     MAX_DISPLACEMENT_OFF,
+    PEAK_COMPRESSION,
     WALL_CONTACTS_PER_SLOT,
     FluidParams,
     FluidSlots,
@@ -331,6 +332,10 @@ class FluidSolver:
             self._loop_count = wp.zeros(1, dtype=wp.int32)
             self._pass_corrects = wp.zeros(1, dtype=wp.int32)
             self._compression_bins = wp.zeros(COMPRESSION_SUMS, dtype=float)
+            # particles past PEAK_COMPRESSION in a substep's last density pass, and their peak, per bin:
+            # kept on the device between two diagnostics calls (see compute_fluid_density_lambda)
+            self._peaks = wp.zeros(2 * COMPRESSION_BINS, dtype=float)
+            self._nonfinite_reported = 0
             self.subiterations_total = wp.zeros(1, dtype=wp.int32)
             # gradient of the static walls' share of rho / rho0 per slot, from the density pass to the correction
             self.wall_grad = wp.zeros(n, dtype=wp.vec3)
@@ -364,6 +369,7 @@ class FluidSolver:
             self._apply_advance.append(advance)
         self._current = 0
         self._iteration = 0
+        self._last_iteration = False
         self._warm_stored = False
         # the current slots hold the particles' positions (and sorted_v their velocities) as SolverXPBD
         # last applied them, so no gather is needed
@@ -567,7 +573,9 @@ class FluidSolver:
         self._velocities_applied = False
         if self.config.fluid_max_iterations == 1:
             if not self._evaluated_ahead:
-                self._evaluate_constraint(active, track_compression=self.iteration_tolerance)
+                self._evaluate_constraint(
+                    active, track_compression=self.iteration_tolerance, last=self._iteration == iterations
+                )
             self._evaluated_ahead = False
             if self.iteration_tolerance:
                 if first:
@@ -596,12 +604,13 @@ class FluidSolver:
                     # the next iteration's density pass needs only these positions: it runs beside
                     # upstream's application of the deltas and its next contacts
                     with self._beside():
-                        self._evaluate_constraint(active)
+                        self._evaluate_constraint(active, last=self._iteration + 1 == iterations)
                     self._evaluated_ahead = True
             return
         # the iteration's first pass corrects; it writes its moved positions into the other position
         # buffer, where the loop's passes go on (while it measured the mean compression above the tolerance)
-        self._evaluate_constraint(self._always_active, track_compression=True)
+        self._last_iteration = self._iteration == iterations
+        self._evaluate_constraint(self._always_active, track_compression=True, last=self._last_iteration)
         self._decide_after_first_pass(self._loop_active, self.config.fluid_max_iterations - 1, stop_uncompressed=True)
         self._correct(particle_deltas, self._always_active, advance=True)
         self._current = 1 - self._current
@@ -636,7 +645,7 @@ class FluidSolver:
 
     def _density_subiteration(self, particle_deltas: wp.array) -> None:
         # (the density pass measures the walls where the last pass left the particles)
-        self._evaluate_constraint(self._loop_active, track_compression=True)
+        self._evaluate_constraint(self._loop_active, track_compression=True, last=self._last_iteration)
         wp.launch_tiled(
             decide_fluid_subiteration,
             dim=1,
@@ -718,13 +727,25 @@ class FluidSolver:
             device=self.device,
         )
 
-    def _evaluate_constraint(self, active: wp.array, track_compression: bool = False) -> None:
-        """Density and multipliers at the positions gathered in ``slots.xm`` (while ``active[0]`` is set)."""
+    def _evaluate_constraint(self, active: wp.array, track_compression: bool = False, last: bool = False) -> None:
+        """Density and multipliers at the positions gathered in ``slots.xm`` (while ``active[0]`` is set).
+
+        ``last``: a pass of the substep's last XPBD iteration, whose compression peaks are kept for the
+        next report.
+        """
         wp.launch(
             compute_fluid_density_lambda,
             dim=self.fluid_count,
-            inputs=[self.params, self.slots, active, self.wall_table, self.wall_table_grad, int(track_compression)],
-            outputs=[self.density, self.lambda_rho, self.wall_grad, self._compression_bins],
+            inputs=[
+                self.params,
+                self.slots,
+                active,
+                self.wall_table,
+                self.wall_table_grad,
+                int(track_compression),
+                int(last),
+            ],
+            outputs=[self.density, self.lambda_rho, self.wall_grad, self._compression_bins, self._peaks],
             device=self.device,
         )
 
@@ -914,6 +935,35 @@ class FluidSolver:
         self._fast_reported = count
         return count
 
+    def _report_peaks(self) -> tuple[int, float]:
+        """Particle substeps compressed past ``PEAK_COMPRESSION`` since the last report, and their peak; warns."""
+        v = self._peaks.numpy()
+        count, peak = int(v[:COMPRESSION_BINS].sum()), float(v[COMPRESSION_BINS:].max())
+        if count:
+            warnings.warn(
+                f"{count} fluid particle substeps since the last report ended their density solve past "
+                f"{100.0 * PEAK_COMPRESSION:.0f} % compression (peak {100.0 * peak:.0f} %): the fluid was packed too tightly "
+                "(an overlapping start) or hit harder than its iterations and substeps hold (use more of "
+                "either, or a fluid_density_tolerance with fluid_max_iterations > 1)",
+                RuntimeWarning,
+                stacklevel=3,
+            )
+            self._peaks.zero_()
+        return count, peak
+
+    def _report_recoveries(self) -> int:
+        """Fluid particles recovered from non-finite values in all; warns when the count grew since the last report."""
+        count = int(self.nonfinite_count.numpy()[0])
+        if count > self._nonfinite_reported:
+            warnings.warn(
+                f"{count - self._nonfinite_reported} fluid particles since the last report had a non-finite "
+                "position or velocity and were put back at rest where they last were finite",
+                RuntimeWarning,
+                stacklevel=3,
+            )
+        self._nonfinite_reported = count
+        return count
+
     def _report_compression(self, mean: float, peak: float) -> None:
         """Warn when the mean compression rises past ``COMPRESSION_WARNING`` (once, until it falls below again)."""
         over = mean > COMPRESSION_WARNING
@@ -951,6 +1001,7 @@ class FluidSolver:
         per = 1.0 / active if active else 0.0
         some = float(active > 0)
         self._report_compression(float(v[3] * per), float(v[4] * some))
+        compressed, peak = self._report_peaks()
         return {
             "active_particles": active,
             "rest_density": self.rest_density,
@@ -963,7 +1014,9 @@ class FluidSolver:
             "neighbors_max": int(v[7] * some),
             "neighbor_overflow": int(v[8]),
             "candidates_mean": float(v[9] * per),
-            "nonfinite_recovered": int(self.nonfinite_count.numpy()[0]),
+            "nonfinite_recovered": self._report_recoveries(),
+            "compressed_particle_substeps": compressed,
+            "peak_compression": peak,
             "fast_particle_substeps": self._report_fast_particles(),
             "density_subiterations": int(self.subiterations_total.numpy()[0]),
         }
