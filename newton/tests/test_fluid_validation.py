@@ -57,7 +57,10 @@ def test_surge_front_matches_experiment(test, device):
         floor_friction=0.0,
         settle=0.0,
     )
-    result = bench.run(20, args, points, device)
+    # 40 layers for 2 iterations: g H / c^2 = 5.8 % (c = 2 x spacing / substep), beyond the 3 % the
+    # solve holds, so the collapse compresses the bottom past 10 % in some substeps, and the run says so
+    with test.assertWarnsRegex(RuntimeWarning, "past 10 % compression"):
+        result = bench.run(20, args, points, device)
     error = np.asarray(result["relative_error"])
     test.assertLess(np.abs(error).max(), 0.25, error)
     test.assertLess(np.abs(error).mean(), 0.12, error)
