@@ -15,6 +15,7 @@ from newton.tests.unittest_utils import add_function_test, get_test_devices
 import newton
 from newton.examples.fluid.common import WATER, add_tank
 from newton.tests.test_fluid_extension import _free_port
+from newton.tests.test_solver_xpbd_fluid import add_block
 
 SPACING = 0.05  # [m]
 POOL = (8, 8, 5)  # particles
@@ -24,21 +25,7 @@ def settled_pool(device):
     """A pool of ``POOL`` particles settled for 1 s in a tank that fits it, its solver and state."""
     d = SPACING
     builder = newton.ModelBuilder()
-    builder.add_particle_grid(
-        pos=wp.vec3(0.5 * d, 0.5 * d, 0.5 * d),
-        rot=wp.quat_identity(),
-        vel=wp.vec3(0.0),
-        dim_x=POOL[0],
-        dim_y=POOL[1],
-        dim_z=POOL[2],
-        cell_x=d,
-        cell_y=d,
-        cell_z=d,
-        mass=1000.0 * d**3,
-        jitter=0.0,
-        radius_mean=0.5 * d,
-        flags=int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID),
-    )
+    add_block(builder, POOL, (0.5 * d, 0.5 * d, 0.5 * d), spacing=d, mass=1000.0 * d**3, radius=0.5 * d)
     builder.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(mu=0.0))
     half = 0.5 * POOL[0] * d
     add_tank(builder, half, half, 0.5, 0.05, center=(half, half))
