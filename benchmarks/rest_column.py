@@ -1,0 +1,178 @@
+# SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
+# SPDX-License-Identifier: Apache-2.0
+
+"""Still water: a column at rest in a closed frictionless box, and how much it moves after settling.
+
+A lattice of ``--n`` x ``--n`` x ``--layers`` fluid particles (spacing 0.05 m, 1000 kg/m^3) fills the
+floor of a closed box of frictionless walls 1.5 times the column's height, at 60 Hz with ``--substeps``
+x ``--iterations`` and the solver's default keywords unless ``--viscosity`` or ``--density-ramp`` are
+given. After ``--settle`` seconds it measures for ``--measure`` seconds: the RMS and largest particle
+speed (sampled every frame), the mean and largest displacement [spacings], the height span of the top
+layer [spacings], the fluid's own density error and the total energy per unit mass (kinetic plus
+g z) at the start and end of the measurement. The targets of issue #23: RMS below 0.005 m/s, max below
+0.02 m/s, mean displacement below 0.05 spacings and max below 0.5, top layer flat within 0.5 spacings.
+
+Usage::
+
+    python benchmarks/rest_column.py [--n 12 --layers 24] [--substeps 8 --iterations 2] [--json out.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import numpy as np
+import warp as wp
+from run_record import machine_record
+
+import newton
+from newton.examples.fluid.progress import track
+
+SPACING = 0.05  # [m]
+GRAVITY = 9.81  # [m/s^2]
+
+
+def build(n: int, layers: int, device):
+    """The column and its closed box; returns the model."""
+    d = SPACING
+    builder = newton.ModelBuilder(gravity=(0.0, 0.0, -GRAVITY))
+    builder.add_particle_grid(
+        pos=wp.vec3(0.5 * d, 0.5 * d, 0.5 * d),
+        rot=wp.quat_identity(),
+        vel=wp.vec3(0.0),
+        dim_x=n,
+        dim_y=n,
+        dim_z=layers,
+        cell_x=d,
+        cell_y=d,
+        cell_z=d,
+        mass=1000.0 * d**3,
+        jitter=0.0,
+        radius_mean=0.5 * d,
+        flags=int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID),
+    )
+    edge, height, t = n * d, 1.5 * layers * d, 0.1
+    cfg = newton.ModelBuilder.ShapeConfig(mu=0.0)
+    # each wall reaches over the ones it meets, so no joint opens between them
+    half, mid = 0.5 * edge, 0.5 * height
+    for center, extent in (
+        ((half, half, -t), (half + 2 * t, half + 2 * t, t)),
+        ((half, half, height + t), (half + 2 * t, half + 2 * t, t)),
+        ((-t, half, mid), (t, half + 2 * t, mid + 2 * t)),
+        ((edge + t, half, mid), (t, half + 2 * t, mid + 2 * t)),
+        ((half, -t, mid), (half + 2 * t, t, mid + 2 * t)),
+        ((half, edge + t, mid), (half + 2 * t, t, mid + 2 * t)),
+    ):
+        xform = wp.transform(wp.vec3(*center), wp.quat_identity())
+        builder.add_shape_box(-1, xform=xform, hx=extent[0], hy=extent[1], hz=extent[2], cfg=cfg)
+    model = builder.finalize(device=device)
+    model.soft_contact_mu = 0.0
+    return model
+
+
+def energy(state) -> float:
+    """Kinetic plus gravitational energy per unit mass [J/kg], averaged over the particles."""
+    q, v = state.particle_q.numpy().astype(np.float64), state.particle_qd.numpy().astype(np.float64)
+    return float((0.5 * (v * v).sum(axis=1) + GRAVITY * q[:, 2]).mean())
+
+
+def run(args, device) -> dict:
+    d = SPACING
+    model = build(args.n, args.layers, device)
+    solver = newton.solvers.SolverXPBD(
+        model,
+        iterations=args.iterations,
+        fluid_rest_distance=d,
+        fluid_viscosity=args.viscosity,
+        fluid_density_ramp=args.density_ramp,
+    )
+    pipeline = newton.CollisionPipeline(model, soft_contact_max=2 * model.particle_count, soft_contact_gap=0.5 * d)
+    contacts = pipeline.contacts()
+    states = [model.state(), model.state()]
+    dt = 1.0 / 60.0 / args.substeps
+
+    def frame():
+        for _ in range(args.substeps):
+            pipeline.collide(states[0], contacts)
+            solver.step(states[0], states[1], None, contacts, dt)
+            states[0], states[1] = states[1], states[0]
+
+    settle, measure = round(args.settle * 60.0), round(args.measure * 60.0)
+    start = time.perf_counter()
+    for _ in track(range(settle), "rest_column: settling", unit="frame"):
+        frame()
+    settled = states[0].particle_q.numpy().astype(np.float64)
+    energy_start = energy(states[0])
+    rms, fastest = [], 0.0
+    for _ in track(range(measure), "rest_column: measuring", unit="frame"):
+        frame()
+        speed = np.linalg.norm(states[0].particle_qd.numpy().astype(np.float64), axis=1)
+        rms.append(float(np.sqrt(np.mean(speed * speed))))
+        fastest = max(fastest, float(speed.max()))
+    wall = time.perf_counter() - start
+    q = states[0].particle_q.numpy().astype(np.float64)
+    moved = np.linalg.norm(q - settled, axis=1) / d
+    # the top layer: the particles that started in it
+    top = model.particle_q.numpy()[:, 2] > (args.layers - 1) * d
+    stats = solver.fluid_diagnostics(states[0])
+    return {
+        "particles": int(model.particle_count),
+        "n": args.n,
+        "layers": args.layers,
+        "substeps": args.substeps,
+        "iterations": args.iterations,
+        "viscosity": args.viscosity,
+        "density_ramp": args.density_ramp,
+        "settle_s": args.settle,
+        "measure_s": args.measure,
+        "rms_speed_m_s": float(np.mean(rms)),
+        "max_speed_m_s": fastest,
+        "mean_displacement_spacings": float(moved.mean()),
+        "max_displacement_spacings": float(moved.max()),
+        "top_layer_span_spacings": float(np.ptp(q[top, 2]) / d),
+        "energy_start_J_kg": energy_start,
+        "energy_end_J_kg": energy(states[0]),
+        "mean_abs_density_error": stats["mean_abs_density_error"],
+        "max_compression": stats["max_compression"],
+        "wall_s": wall,
+    }
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--n", type=int, default=12, help="particles along each side of the column")
+    parser.add_argument("--layers", type=int, default=24)
+    parser.add_argument("--substeps", type=int, default=8)
+    parser.add_argument("--iterations", type=int, default=2)
+    parser.add_argument("--viscosity", type=float, default=0.0)
+    parser.add_argument("--density-ramp", type=float, default=0.0)
+    parser.add_argument("--settle", type=float, default=2.0, help="[s]")
+    parser.add_argument("--measure", type=float, default=3.0, help="[s]")
+    parser.add_argument("--device", default=None)
+    parser.add_argument("--json", default=None)
+    args = parser.parse_args(argv)
+    wp.config.quiet = True
+    device = wp.get_device(args.device)
+    with wp.ScopedDevice(device):
+        r = run(args, device)
+    print(
+        f"{'device':<24}{'particles':>10}{'sub x it':>9}{'rms m/s':>9}{'max m/s':>9}{'mean d':>8}{'max d':>7}"
+        f"{'top':>6}{'mean|e|':>9}{'max c':>7}"
+    )
+    name = device.name if device.is_cuda else "cpu"
+    print(
+        f"{name:<24}{r['particles']:>10}{r['substeps']:>5} x {r['iterations']:<1}{r['rms_speed_m_s']:>9.4f}"
+        f"{r['max_speed_m_s']:>9.3f}{r['mean_displacement_spacings']:>8.3f}{r['max_displacement_spacings']:>7.2f}"
+        f"{r['top_layer_span_spacings']:>6.2f}{100 * r['mean_abs_density_error']:>8.2f}%{100 * r['max_compression']:>6.2f}%"
+    )
+    result = {"benchmark": "rest_column", **machine_record(device), **r}
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(result, f, indent=2)
+    return result
+
+
+if __name__ == "__main__":
+    main()
