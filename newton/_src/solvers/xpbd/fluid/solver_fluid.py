@@ -335,7 +335,6 @@ class FluidSolver:
             # particles past PEAK_COMPRESSION in a substep's last density pass, and their peak, per bin:
             # kept on the device between two diagnostics calls (see compute_fluid_density_lambda)
             self._peaks = wp.zeros(2 * COMPRESSION_BINS, dtype=float)
-            self._nonfinite_reported = 0
             self.subiterations_total = wp.zeros(1, dtype=wp.int32)
             # gradient of the static walls' share of rho / rho0 per slot, from the density pass to the correction
             self.wall_grad = wp.zeros(n, dtype=wp.vec3)
@@ -346,6 +345,7 @@ class FluidSolver:
             self.nonfinite_count = wp.zeros(1, dtype=wp.int32)
             self.fast_count = wp.zeros(1, dtype=wp.int32)
             self._fast_reported = 0
+            self._nonfinite_reported = 0
             self._compression_reported = False
             #: density of every particle at the state of the last :meth:`diagnostics` call [kg/m^3] (0 for non-fluid)
             self.particle_density = wp.zeros(model.particle_count, dtype=float)

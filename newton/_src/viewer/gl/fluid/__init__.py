@@ -223,7 +223,7 @@ def _fluid_draw_mesh(self, name, positions, radii, material, axes, hidden):
     from .surface_mesh import draw_surface_mesh, hide_surface_mesh  # noqa: PLC0415
 
     if self.fluid_surface:
-        if not draw_surface_mesh(self, name, positions, radii, material, axes, hidden):
+        if not draw_surface_mesh(self, name, positions, radii, material, hidden):
             # no surface this frame (every particle apart from the rest): hide the last one
             hide_surface_mesh(self, name)
         return

@@ -27,9 +27,12 @@ absorption coefficients [1/m] as the custom input ``inputs:absorption`` a render
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 import warp as wp
+
+from .renderer import COLOR_REFERENCE_THICKNESS, FluidMaterial
 
 # voxel edge, extraction kernel radius and the kernels' scale, per particle radius (see the module's docstring)
 VOXEL_PER_RADIUS = 1.0
@@ -37,28 +40,34 @@ KERNEL_RADIUS_PER_RADIUS = 3.0
 # with those, the render particles of a lattice block put its flat faces 0.48 rest distances beyond its
 # outer centres at this level (measured: 0.55 at the extractor's default of 0.25, 0.44 at 0.35)
 ISO_LEVEL = 0.3
-# fluid depth [m] over which the transmitted share of light sets a mesh viewer's opacity (as in log_fluid's colour)
-OPACITY_DEPTH = 0.1
 # smallest opacity given to a mesh viewer, so that clear water still shows
 MIN_OPACITY = 0.2
 # water is smooth
 ROUGHNESS = 0.05
 
 
-def mesh_opacity(color: tuple, absorption: tuple | None) -> float:
-    """Opacity of the surface mesh: the light absorbed by ``OPACITY_DEPTH`` of fluid, at least ``MIN_OPACITY``."""
-    if absorption is None:
-        transmitted = float(np.mean(np.clip(color[:3], 0.0, 1.0)))
-    else:
-        transmitted = float(np.mean(np.exp(-OPACITY_DEPTH * np.asarray(absorption, dtype=np.float64))))
+def mesh_opacity(material: FluidMaterial) -> float:
+    """Opacity of the surface mesh: the light absorbed by the colour's reference thickness of fluid, at least ``MIN_OPACITY``."""
+    sigma = np.asarray(material.absorption_coefficients(), dtype=np.float64)
+    transmitted = float(np.mean(np.exp(-COLOR_REFERENCE_THICKNESS * sigma)))
     return float(np.clip(1.0 - transmitted, MIN_OPACITY, 1.0))
 
 
+@dataclass
+class _Batch:
+    """One batch's extraction context (it keeps its buffers between frames) and the radius it was sized for."""
+
+    key: tuple  # (radius rounded, device): a new context when it changes
+    surface: object  # newton.geometry.ParticleSurface
+    radius: float = 0.0  # [m]
+    source: tuple | None = None  # (pointer, length) of the radii array the radius was read from
+
+
 class FluidSurfaceMeshes:
-    """The extraction contexts of one viewer, one per batch (a context keeps its buffers between frames)."""
+    """The extraction contexts of one viewer, one per batch."""
 
     def __init__(self):
-        self._contexts = {}
+        self._batches = {}
         #: batches with a mesh logged (and visible) in the viewer
         self.shown = set()
 
@@ -78,17 +87,19 @@ class FluidSurfaceMeshes:
         device = positions.device
         if radii is None:
             radii = 0.1
+        batch = self._batches.get(name)
         if isinstance(radii, (int, float)):
-            radius = float(radii)
+            radius, source = float(radii), None
             radii_array = wp.full(n, radius, dtype=float, device=device)
         else:
-            radii_array = radii[:n]
-            radius = float(np.median(radii_array.numpy()))
+            radii_array, source = radii[:n], (radii.ptr, n)
+            # the median radius sizes the voxels: read from the device only when the radii array changes
+            same = batch is not None and batch.source == source
+            radius = batch.radius if same else float(np.median(radii_array.numpy()))
         if not (math.isfinite(radius) and radius > 0.0):
             raise ValueError(f"radii={radii!r} is invalid: expected radii in (0, inf) [m]")
         key = (round(radius, 9), str(device))
-        context = self._contexts.get(name)
-        if context is None or context[0] != key:
+        if batch is None or batch.key != key:
             surface = ParticleSurface(
                 VOXEL_PER_RADIUS * radius,
                 kernel_radius=KERNEL_RADIUS_PER_RADIUS * radius,
@@ -96,10 +107,10 @@ class FluidSurfaceMeshes:
                 smooth_lambda=0.0,
                 device=device,
             )
-            context = (key, surface)
-            self._contexts[name] = context
-        mesh = context[1].extract(positions, radii_array, compute_normals=True)
-        return mesh.to_arrays()
+            batch = _Batch(key, surface)
+            self._batches[name] = batch
+        batch.radius, batch.source = radius, source
+        return batch.surface.extract(positions, radii_array, compute_normals=True).to_arrays()
 
 
 def surface_meshes(viewer) -> FluidSurfaceMeshes:
@@ -111,7 +122,7 @@ def surface_meshes(viewer) -> FluidSurfaceMeshes:
     return meshes
 
 
-def draw_surface_mesh(viewer, name, positions, radii, material, axes, hidden) -> bool:
+def draw_surface_mesh(viewer, name, positions, radii, material, hidden) -> bool:
     """Log the batch's surface as a dynamic mesh through ``viewer.log_mesh``; False when it has no surface."""
     meshes = surface_meshes(viewer)
     vertices, indices, normals = meshes.extract(name, positions, radii)
@@ -130,7 +141,7 @@ def draw_surface_mesh(viewer, name, positions, radii, material, axes, hidden) ->
         color=None if usd else tuple(material.color[:3]),
         roughness=None if usd else ROUGHNESS,
         dynamic=True,
-        opacity=None if usd else mesh_opacity(material.color, material.absorption),
+        opacity=None if usd else mesh_opacity(material),
     )
     if usd:
         bind_usd_water_material(viewer, name, material)
@@ -155,15 +166,12 @@ def bind_usd_water_material(viewer, name: str, material) -> None:
     shader = UsdShade.Shader(stage.GetPrimAtPath(f"{material_path}/PreviewSurface"))
     rgb = Gf.Vec3f(*(float(c) for c in material.color[:3]))
     shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(rgb)
-    shader.CreateInput("opacity", Sdf.ValueTypeNames.Float).Set(mesh_opacity(material.color, material.absorption))
+    shader.CreateInput("opacity", Sdf.ValueTypeNames.Float).Set(mesh_opacity(material))
     shader.CreateInput("ior", Sdf.ValueTypeNames.Float).Set(float(material.ior))
     shader.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(ROUGHNESS)
     shader.CreateInput("metallic", Sdf.ValueTypeNames.Float).Set(0.0)
-    absorption = material.absorption
-    if absorption is None:
-        # log_fluid's rule: 0.1 m of fluid transmits the colour
-        absorption = tuple(-math.log(max(float(c), 1.0e-6)) / OPACITY_DEPTH for c in material.color[:3])
-    shader.CreateInput("absorption", Sdf.ValueTypeNames.Float3).Set(Gf.Vec3f(*(float(a) for a in absorption)))
+    absorption = Gf.Vec3f(*material.absorption_coefficients())
+    shader.CreateInput("absorption", Sdf.ValueTypeNames.Float3).Set(absorption)
 
 
 def hide_surface_mesh(viewer, name: str) -> None:
