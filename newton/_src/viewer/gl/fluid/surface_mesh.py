@@ -93,7 +93,8 @@ class FluidSurfaceMeshes:
             radii_array = wp.full(n, radius, dtype=float, device=device)
         else:
             radii_array, source = radii[:n], (radii.ptr, n)
-            # the median radius sizes the voxels: read from the device only when the radii array changes
+            # the median radius sizes the voxels: read from the device only for another radii array (radii
+            # edited in place keep the voxel size they were first read with)
             same = batch is not None and batch.source == source
             radius = batch.radius if same else float(np.median(radii_array.numpy()))
         if not (math.isfinite(radius) and radius > 0.0):
