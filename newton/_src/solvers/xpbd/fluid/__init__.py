@@ -13,6 +13,7 @@ imported directly) and adds to ``SolverXPBD``:
   other particle constraints accumulated their Jacobi deltas);
 - a wrapped ``step`` (fluid-fluid pairs skipped by particle contacts, and after the step: viscosity,
   vorticity confinement, non-finite recovery);
+- a wrapped ``reset`` (restore the fluid of the selected worlds and clear their carried solver state);
 - :meth:`fluid_diagnostics` and :meth:`update_render_particles`.
 
 Solvers whose model has no fluid particle take none of these paths.
@@ -35,6 +36,7 @@ _UPSTREAM_NAMES = (
     ("SolverXPBD", "_apply_particle_deltas"),
     ("SolverXPBD", "integrate_particles"),
     ("SolverXPBD", "step"),
+    ("SolverXPBD", "reset"),
     ("solver_module", "solve_particle_particle_contacts"),
 )
 
@@ -147,6 +149,34 @@ def fluid_diagnostics(self, state) -> dict:
     return self._fluid.diagnostics(state)
 
 
+def reset(self, state, world_mask=None, flags=None, *, fluid_source=None) -> None:
+    """Reset the selected worlds: upstream's reset, then their fluid restored and its history cleared.
+
+    Upstream's :meth:`SolverXPBD.reset` runs first (it validates ``world_mask`` and resets tendon
+    state). Then, for the fluid particles of the selected worlds, positions (with
+    :attr:`~newton.StateFlags.PARTICLE_Q` in ``flags``) and velocities (with
+    :attr:`~newton.StateFlags.PARTICLE_QD`) are restored from ``fluid_source``, and the solver state they
+    carry between steps is cleared: warm-start multipliers, the last finite positions that a
+    non-finite recovery falls back to, and the worlds' diffuse particles. A world reset with its
+    initial particles then replays bitwise as a fresh start (CPU); every other world's particles and
+    solver state are left untouched. Non-fluid particles, bodies and joints are not restored here.
+    The whole-model counters (``fluid_nonfinite_count``, ``fluid_fast_count``, the compression peaks
+    that :meth:`fluid_diagnostics` reports) keep counting. Device work only, no allocation or
+    synchronisation: it can be captured in a CUDA graph, and the mask's contents may change between
+    replays.
+
+    Args:
+        state: The state to reset (modified in place), the one the next :meth:`step` reads.
+        world_mask: ``wp.array`` of ``world_count + 1`` bools on the model's device (the last entry selects
+            the global world -1), as :meth:`newton.solvers.SolverBase.reset` takes it; ``None`` resets all.
+        flags: :class:`~newton.StateFlags` bits saying what to restore; ``None`` restores positions and
+            velocities. Without ``PARTICLE_Q`` and ``PARTICLE_QD`` the fluid is left as it is.
+        fluid_source: A :class:`~newton.State` of this model to take the particles from (only those of the
+            selected worlds are read); ``None`` takes the model's initial ``particle_q`` and ``particle_qd``.
+    """
+    return self._fluid_reset(state, world_mask, flags, fluid_source)
+
+
 def update_render_particles(
     self,
     state,
@@ -192,6 +222,7 @@ def activate(xpbd_module) -> None:
     upstream_integrate = cls.integrate_particles
     upstream_apply = cls._apply_particle_deltas
     upstream_step = cls.step
+    upstream_reset = cls.reset
 
     @functools.wraps(upstream_init)
     def __init__(self, model, *args, **kwargs):
@@ -237,6 +268,30 @@ def activate(xpbd_module) -> None:
             upstream_step(self, state_in, state_out, control, contacts, dt, **kwargs)
         self._fluid.finish_step(state_out, dt)
 
+    def _fluid_reset(self, state, world_mask, flags, fluid_source):
+        upstream_reset(self, state, world_mask, flags)
+        if self._fluid is None:
+            if fluid_source is not None:
+                raise ValueError("fluid_source is given, but the model has no fluid particles to restore")
+            return
+        from ....sim import StateFlags  # noqa: PLC0415
+
+        bits = int(StateFlags.PARTICLE_Q | StateFlags.PARTICLE_QD) if flags is None else int(flags)
+        restore_q, restore_qd = bool(bits & StateFlags.PARTICLE_Q), bool(bits & StateFlags.PARTICLE_QD)
+        if not (restore_q or restore_qd):
+            return
+        model = self.model
+        if fluid_source is not None:
+            q = getattr(fluid_source, "particle_q", None)
+            if q is None or q.shape[0] != model.particle_count or q.device != model.device:
+                found = "no particle_q" if q is None else f"{q.shape[0]} particles on {q.device}"
+                raise ValueError(
+                    f"fluid_source has {found}: expected a State of this model "
+                    f"({model.particle_count} particles on {model.device})"
+                )
+        # upstream validated the mask (shape world_count + 1, bool, on the model's device)
+        self._fluid.reset(state, world_mask, restore_q, restore_qd, fluid_source)
+
     sig = inspect.signature(upstream_init)
     extra = [inspect.Parameter(k, inspect.Parameter.KEYWORD_ONLY, default=v) for k, v in _FLUID_KWARGS.items()]
     __init__.__signature__ = sig.replace(parameters=[*sig.parameters.values(), *extra])
@@ -246,6 +301,8 @@ def activate(xpbd_module) -> None:
     cls.integrate_particles = integrate_particles
     cls._apply_particle_deltas = _apply_particle_deltas
     cls.step = step
+    cls._fluid_reset = _fluid_reset
+    cls.reset = reset
     cls.fluid_diagnostics = fluid_diagnostics
     cls.update_render_particles = update_render_particles
     for name in (

@@ -56,6 +56,7 @@ from .kernels import (
 )
 from .neighbors import FluidNeighborSearch, neighbor_list_layout
 from .render_particles import compute_fluid_render_particles, reset_render_particles
+from .reset import reset_diffuse_worlds, reset_fluid_worlds
 
 # smoothing length h = DEFAULT_SMOOTHING_RATIO * rest distance unless given
 DEFAULT_SMOOTHING_RATIO = 1.8
@@ -350,6 +351,8 @@ class FluidSolver:
             #: density of every particle at the state of the last :meth:`diagnostics` call [kg/m^3] (0 for non-fluid)
             self.particle_density = wp.zeros(model.particle_count, dtype=float)
             self._summary = wp.zeros(_SUMMARY_SIZE, dtype=float)
+            # stands in for the reset mask when every world is reset (the kernel then reads none)
+            self._no_mask = wp.zeros(1, dtype=wp.bool)
         other = FluidSlots()
         for field in ("particle", "neighbors", "neighbor_count", "capacity", "lanes", "lane_capacity"):
             setattr(other, field, getattr(self.search.slots, field))
@@ -913,6 +916,50 @@ class FluidSolver:
             outputs=[self.render_positions, *axes],
             device=self.device,
         )
+
+    # --- reset -------------------------------------------------------------------------------------
+
+    def reset(self, state, world_mask: wp.array | None, restore_q: bool, restore_qd: bool, source=None) -> None:
+        """Restore the fluid of the worlds ``world_mask`` selects and clear their carried solver state.
+
+        Args:
+            state: The state whose fluid particles are restored (in place).
+            world_mask: Validated mask of ``world_count + 1`` booleans, or ``None`` for every world.
+            restore_q: Whether positions are restored from ``source``.
+            restore_qd: Whether velocities are restored from ``source``.
+            source: A state to take the particles from; ``None``: the model's initial particles.
+        """
+        m = self.model
+        src_q = m.particle_q if source is None else source.particle_q
+        src_qd = m.particle_qd if source is None else source.particle_qd
+        use_mask = int(world_mask is not None)
+        mask = world_mask if world_mask is not None else self._no_mask
+        wp.launch(
+            reset_fluid_worlds,
+            dim=self.fluid_count,
+            inputs=[
+                self.fluid_particle,
+                m.particle_world,
+                mask,
+                m.world_count,
+                use_mask,
+                src_q,
+                src_qd,
+                int(restore_q),
+                int(restore_qd),
+            ],
+            outputs=[state.particle_q, state.particle_qd, self.last_finite_q, self.particle_lambda],
+            device=self.device,
+        )
+        if self.diffuse is not None:
+            b = self.diffuse
+            wp.launch(
+                reset_diffuse_worlds,
+                dim=len(b.kind),
+                inputs=[mask, m.world_count, use_mask, b.world, int(DIFFUSE_DEAD)],
+                outputs=[b.lifetime, b.kind],
+                device=self.device,
+            )
 
     # --- diagnostics -------------------------------------------------------------------------------
 
