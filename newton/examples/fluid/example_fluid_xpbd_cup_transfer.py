@@ -8,8 +8,9 @@ see :mod:`newton.examples.fluid.panda`; no assets, no network) as kinematic link
 joint path (smoothstep between keyframes, joint 6 chosen so the hand points straight down)
 lifts the cup, swings it about the base through a point in front of the robot, and sets it down
 on the other side over 9 s; forward kinematics on the device poses every link before each
-substep, so the frame stays one CUDA graph. The cup is a triangle mesh held in the hand; the
-water is confined by the mesh's signed distance and sloshes as the cup accelerates.
+substep, so the frame stays one CUDA graph. The cup is a triangle mesh held in the hand, filled
+by ``ModelBuilder.add_fluid_fill`` up to its fill line; the water is confined by the mesh's signed
+distance and sloshes as the cup accelerates.
 
 Success criteria:
 - Not a drop spills: at every sampled frame, every particle is inside the cup.
@@ -108,21 +109,13 @@ class Example(FluidExample):
         self.cup_xform = CUP_OFFSET * wp.transform(wp.vec3(0.0, 0.0, -0.5 * CUP_HEIGHT - CUP_WALL), wp.quat_identity())
         builder.add_shape_mesh(hand, xform=self.cup_xform, mesh=cup, cfg=cfg)
 
-        # water at rest in the cup, in the cup's frame at the first keyframe
+        # water at rest in the cup, FILL deep above its inner floor, where the cup is at the first keyframe
         angles = keyframe_angles()
         cup_world = self._cup_world(forward_kinematics(angles[0])[6])
-        axis = np.arange(-CUP_RADIUS + 0.5 * d, CUP_RADIUS, d)
-        x, y, z = np.meshgrid(axis, axis, np.arange(CUP_WALL + 0.5 * d, CUP_WALL + FILL, d), indexing="ij")
-        local = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
-        local = local[np.hypot(local[:, 0], local[:, 1]) < CUP_RADIUS - 0.5 * d]
-        pts = local @ cup_world[:3, :3].T + cup_world[:3, 3]
-        builder.add_particles(
-            pos=[wp.vec3(*p) for p in pts],
-            vel=[wp.vec3(0.0)] * len(pts),
-            mass=[1000.0 * d**3] * len(pts),
-            radius=[0.5 * d] * len(pts),
-            flags=[int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID)] * len(pts),
-        )
+        placement = wp.transform(wp.vec3(*cup_world[:3, 3]), wp.quat_from_matrix(wp.mat33(*cup_world[:3, :3].ravel())))
+        first = builder.particle_count
+        builder.add_fluid_fill(cup, d, xform=placement, fill_height=CUP_WALL + FILL)
+        pts = np.array(builder.particle_q[first:])
         builder.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(mu=0.0))
         self.model = builder.finalize()
         self.model.soft_contact_mu = 0.0
