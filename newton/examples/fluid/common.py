@@ -212,6 +212,23 @@ class FluidExample:
 
 
 @wp.kernel
+def offset_by_world(
+    positions: wp.array[wp.vec3],
+    particle_world: wp.array[wp.int32],
+    world_offsets: wp.array[wp.vec3],
+    # outputs
+    shown: wp.array[wp.vec3],
+):
+    """Draw isolated worlds that share one place side by side: each particle moved by its world's offset."""
+    i = wp.tid()
+    w = particle_world[i]
+    offset = wp.vec3(0.0)
+    if w >= 0 and w < world_offsets.shape[0]:
+        offset = world_offsets[w]
+    shown[i] = positions[i] + offset
+
+
+@wp.kernel
 def advance_clock(clock: wp.array[float], dt: float):
     """Add ``dt`` [s] to a device-side clock (so captured graphs see the time advance)."""
     clock[0] = clock[0] + dt

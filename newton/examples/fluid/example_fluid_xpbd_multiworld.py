@@ -24,29 +24,13 @@ import warp as wp
 import newton
 import newton.examples
 from newton.examples.fluid.capture import main as capture_or_run
-from newton.examples.fluid.common import FluidExample, add_tank
+from newton.examples.fluid.common import FluidExample, add_tank, offset_by_world
 
 TANK_HALF = 0.15  # inner half extent in x and y [m]
 WALL_HEIGHT = 0.3  # [m]
 WALL_THICKNESS = 0.02  # [m]
 COLUMN_HEIGHTS = (0.08, 0.12, 0.16, 0.2)  # [m], by world index mod 4
 COLUMN_LENGTH = 0.1  # [m] against the -x wall
-
-
-@wp.kernel
-def offset_by_world(
-    positions: wp.array[wp.vec3],
-    particle_world: wp.array[wp.int32],
-    world_offsets: wp.array[wp.vec3],
-    # outputs
-    shown: wp.array[wp.vec3],
-):
-    i = wp.tid()
-    w = particle_world[i]
-    offset = wp.vec3(0.0)
-    if w >= 0 and w < world_offsets.shape[0]:
-        offset = world_offsets[w]
-    shown[i] = positions[i] + offset
 
 
 class Example(FluidExample):

@@ -1,0 +1,181 @@
+# SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
+# SPDX-License-Identifier: Apache-2.0
+
+"""Throughput of batched fluid worlds: batch frames per second and environment steps per second.
+
+For each scene (``pouring``: the task of ``fluid_xpbd_pouring``, one frame = one environment step,
+resets and measurements included; ``multiworld``: the dam breaks of ``fluid_xpbd_multiworld``), world
+count and particles per world: build the example, run ``--warmup`` frames (the first ones compile and
+capture the frame's graph), then time ``--frames`` frames (graph replays on CUDA) and report batch
+frames/s, environment steps/s (worlds x frames/s) and the fluid's mean density error at the end.
+``--breakdown`` also times, for each configuration and without a graph, the parts of a frame that
+matter at many worlds: the task's own work (reset, actions, cups, measurement), the collision
+pipeline, and the solver step.
+
+Usage::
+
+    python benchmarks/batched_worlds.py [--scene pouring multiworld] [--worlds 1 16 256 1024 4096]
+        [--per-world 1000 4000] [--frames 60] [--json out.json] [--plot out.png] [--breakdown]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import newton.viewer
+import warp as wp
+from run_record import machine_record
+
+import newton
+from newton.examples.fluid.progress import track
+
+
+def build(scene: str, worlds: int, per_world: int):
+    if scene == "pouring":
+        from newton.examples.fluid.example_fluid_xpbd_pouring import Example  # noqa: PLC0415
+
+        extra = {"policy": "scripted"}
+        count = per_world
+    else:
+        from newton.examples.fluid.example_fluid_xpbd_multiworld import Example  # noqa: PLC0415
+
+        extra = {}
+        count = per_world * worlds
+    args = argparse.Namespace(world_count=worlds, particle_count=count, **extra)
+    return Example(newton.viewer.ViewerNull(num_frames=10**9), args)
+
+
+def timed(fn, repeats: int) -> float:
+    wp.synchronize()
+    start = time.perf_counter()
+    for _ in range(repeats):
+        fn()
+    wp.synchronize()
+    return (time.perf_counter() - start) / repeats
+
+
+def breakdown(example, repeats: int) -> dict:
+    """Per-frame time [ms] of the task's own work, the collision pipeline and the solver step, without a graph."""
+    ex = example
+    parts = {}
+    parts["collide_ms"] = 1e3 * ex.sim_substeps * timed(lambda: ex.collision.collide(ex.state_0, ex.contacts), repeats)
+
+    def solver_step():
+        ex.solver.step(ex.state_0, ex.state_1, None, ex.contacts, ex.sim_dt)
+        ex.state_0, ex.state_1 = ex.state_1, ex.state_0
+
+    parts["solver_step_ms"] = 1e3 * ex.sim_substeps * timed(solver_step, 2 * repeats // 2 or 2)
+    if hasattr(ex, "observe"):
+
+        def task():
+            ex._restart(ex._ended)
+            ex.scripted_actions()
+            ex.prescribe(ex.state_0)
+            ex.observe(first=False)
+
+        parts["task_ms"] = 1e3 * timed(task, repeats)
+    return parts
+
+
+def run(args) -> list[dict]:
+    rows = []
+    configs = [(s, w, p) for s in args.scene for p in args.per_world for w in args.worlds]
+    for scene, worlds, per_world in track(configs, "batched_worlds", quiet=args.quiet):
+        if worlds * per_world > args.max_particles:
+            continue
+        ex = build(scene, worlds, per_world)
+        for _ in range(args.warmup):
+            ex.step()
+        seconds = timed(ex.step, args.frames)
+        stats = ex.solver.fluid_diagnostics(ex.state_0)
+        row = {
+            "scene": scene,
+            "worlds": worlds,
+            "particles_per_world": ex.model.particle_count / worlds,
+            "particles": ex.model.particle_count,
+            "substeps": ex.sim_substeps,
+            "iterations": ex.solver.iterations,
+            "frames": args.frames,
+            "graph": ex.graph is not None,
+            "ms_per_frame": 1e3 * seconds,
+            "batch_frames_per_s": 1.0 / seconds,
+            "env_steps_per_s": worlds / seconds,
+            "mean_abs_density_error": stats["mean_abs_density_error"],
+            "mean_compression": stats["mean_compression"],
+        }
+        if args.breakdown:
+            row.update(breakdown(ex, max(3, args.frames // 10)))
+        rows.append(row)
+        del ex
+    return rows
+
+
+def plot(rows: list[dict], path: str) -> None:
+    import matplotlib  # noqa: PLC0415
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt  # noqa: PLC0415
+
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for key in sorted({(r["scene"], round(r["particles_per_world"], -2)) for r in rows}):
+        sel = [r for r in rows if (r["scene"], round(r["particles_per_world"], -2)) == key]
+        ax.plot(
+            [r["worlds"] for r in sel],
+            [r["env_steps_per_s"] for r in sel],
+            "o-",
+            label=f"{key[0]}, ~{key[1]:.0f} per world",
+        )
+    ax.axhline(1.0e5, color="gray", ls="--", lw=0.8, label="100k env-steps/s")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("worlds")
+    ax.set_ylabel("environment steps per second")
+    ax.set_title(f"{rows[0]['substeps']} substeps x {rows[0]['iterations']} iterations, 60 Hz")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--scene", nargs="+", choices=("pouring", "multiworld"), default=["pouring"])
+    parser.add_argument("--worlds", type=int, nargs="+", default=[1, 16, 256, 1024, 4096])
+    parser.add_argument("--per-world", type=int, nargs="+", default=[1000, 4000], help="Particles per world.")
+    parser.add_argument("--warmup", type=int, default=10, help="Frames before timing.")
+    parser.add_argument("--frames", type=int, default=60, help="Frames timed.")
+    parser.add_argument("--max-particles", type=int, default=20_000_000, help="Skip larger configurations.")
+    parser.add_argument("--breakdown", action="store_true", help="Also time the parts of a frame without a graph.")
+    parser.add_argument("--json", type=str, default=None)
+    parser.add_argument("--plot", type=str, default=None, help="PNG of env-steps/s against worlds.")
+    parser.add_argument("--quiet", action="store_true")
+    args = parser.parse_args()
+    device = wp.get_device()
+    rows = run(args)
+    header = f"{'scene':<11}{'worlds':>7}{'per world':>10}{'ms/frame':>10}{'frames/s':>10}{'env-steps/s':>13}{'density err':>12}"
+    print(
+        f"device {device.name if device.is_cuda else 'cpu'}, {rows[0]['substeps']} substeps x {rows[0]['iterations']} iterations"
+    )
+    print(header)
+    for r in rows:
+        print(
+            f"{r['scene']:<11}{r['worlds']:>7}{r['particles_per_world']:>10.0f}{r['ms_per_frame']:>10.2f}"
+            f"{r['batch_frames_per_s']:>10.1f}{r['env_steps_per_s']:>13,.0f}{100 * r['mean_abs_density_error']:>11.2f}%"
+            + (
+                f"   collide {r['collide_ms']:.2f} ms, step {r['solver_step_ms']:.2f} ms"
+                + (f", task {r['task_ms']:.2f} ms" if "task_ms" in r else "")
+                if "collide_ms" in r
+                else ""
+            )
+        )
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump({**machine_record(device), "rows": rows}, f, indent=1)
+    if args.plot:
+        plot(rows, args.plot)
+
+
+if __name__ == "__main__":
+    main()
