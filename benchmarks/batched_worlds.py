@@ -8,9 +8,8 @@ resets and measurements included; ``multiworld``: the dam breaks of ``fluid_xpbd
 count and particles per world: build the example, run ``--warmup`` frames (the first ones compile and
 capture the frame's graph), then time ``--frames`` frames (graph replays on CUDA) and report batch
 frames/s, environment steps/s (worlds x frames/s) and the fluid's mean density error at the end.
-``--breakdown`` also times, for each configuration and without a graph, the parts of a frame that
-matter at many worlds: the task's own work (reset, actions, cups, measurement), the collision
-pipeline, and the solver step.
+``--breakdown`` also lists the GPU time of each kernel over one frame run without a graph (where
+the time goes at many worlds: the collision pipeline, the solver, the task's own work).
 
 Usage::
 
@@ -25,6 +24,7 @@ import json
 import time
 
 import newton.viewer
+import numpy as np
 import warp as wp
 from run_record import machine_record
 
@@ -32,7 +32,7 @@ import newton
 from newton.examples.fluid.progress import track
 
 
-def build(scene: str, worlds: int, per_world: int):
+def build(scene: str, worlds: int, per_world: int, collide_every: int):
     if scene == "pouring":
         from newton.examples.fluid.example_fluid_xpbd_pouring import Example  # noqa: PLC0415
 
@@ -43,7 +43,7 @@ def build(scene: str, worlds: int, per_world: int):
 
         extra = {}
         count = per_world * worlds
-    args = argparse.Namespace(world_count=worlds, particle_count=count, **extra)
+    args = argparse.Namespace(world_count=worlds, particle_count=count, collide_every=collide_every, **extra)
     return Example(newton.viewer.ViewerNull(num_frames=10**9), args)
 
 
@@ -56,36 +56,30 @@ def timed(fn, repeats: int) -> float:
     return (time.perf_counter() - start) / repeats
 
 
-def breakdown(example, repeats: int) -> dict:
-    """Per-frame time [ms] of the task's own work, the collision pipeline and the solver step, without a graph."""
-    ex = example
-    parts = {}
-    parts["collide_ms"] = 1e3 * ex.sim_substeps * timed(lambda: ex.collision.collide(ex.state_0, ex.contacts), repeats)
-
-    def solver_step():
-        ex.solver.step(ex.state_0, ex.state_1, None, ex.contacts, ex.sim_dt)
-        ex.state_0, ex.state_1 = ex.state_1, ex.state_0
-
-    parts["solver_step_ms"] = 1e3 * ex.sim_substeps * timed(solver_step, 2 * repeats // 2 or 2)
-    if hasattr(ex, "observe"):
-
-        def task():
-            ex._restart(ex._ended)
-            ex.scripted_actions()
-            ex.prescribe(ex.state_0)
-            ex.observe(first=False)
-
-        parts["task_ms"] = 1e3 * timed(task, repeats)
-    return parts
+def kernel_breakdown(example) -> list:
+    """GPU time [ms] per kernel name over one frame run without a graph (after one such frame), largest first."""
+    example.simulate()
+    wp.synchronize()
+    wp.timing_begin(cuda_filter=wp.TIMING_KERNEL | wp.TIMING_KERNEL_BUILTIN | wp.TIMING_MEMSET | wp.TIMING_MEMCPY)
+    example.simulate()
+    results = wp.timing_end()
+    total = {}
+    for r in results:
+        key = r.name.split("(")[0]
+        t, c = total.get(key, (0.0, 0))
+        total[key] = (t + r.elapsed, c + 1)
+    return sorted(([k, t, c] for k, (t, c) in total.items()), key=lambda x: -x[1])
 
 
 def run(args) -> list[dict]:
     rows = []
-    configs = [(s, w, p) for s in args.scene for p in args.per_world for w in args.worlds]
-    for scene, worlds, per_world in track(configs, "batched_worlds", quiet=args.quiet):
+    configs = [
+        (s, w, p, k) for s in args.scene for p in args.per_world for w in args.worlds for k in args.collide_every
+    ]
+    for scene, worlds, per_world, collide_every in track(configs, "batched_worlds", quiet=args.quiet):
         if worlds * per_world > args.max_particles:
             continue
-        ex = build(scene, worlds, per_world)
+        ex = build(scene, worlds, per_world, collide_every)
         for _ in range(args.warmup):
             ex.step()
         seconds = timed(ex.step, args.frames)
@@ -97,6 +91,7 @@ def run(args) -> list[dict]:
             "particles": ex.model.particle_count,
             "substeps": ex.sim_substeps,
             "iterations": ex.solver.iterations,
+            "collide_every": collide_every,
             "frames": args.frames,
             "graph": ex.graph is not None,
             "ms_per_frame": 1e3 * seconds,
@@ -104,9 +99,20 @@ def run(args) -> list[dict]:
             "env_steps_per_s": worlds / seconds,
             "mean_abs_density_error": stats["mean_abs_density_error"],
             "mean_compression": stats["mean_compression"],
+            "compressed_particle_substeps": stats["compressed_particle_substeps"],
+            "peak_compression": stats["peak_compression"],
+            "neighbors_max": stats["neighbors_max"],
+            "neighbor_overflow": stats["neighbor_overflow"],
         }
-        if args.breakdown:
-            row.update(breakdown(ex, max(3, args.frames // 10)))
+        if scene == "pouring" and args.task_frames > 0:
+            # the scripted pour's outcome: worlds whose first episode succeeded, none failed
+            for _ in range(max(0, args.task_frames - args.warmup - args.frames)):
+                ex.step()
+            succeeded, failed = ex.episodes.numpy().T
+            row["task_frames"] = args.task_frames
+            row["worlds_poured"] = float(np.mean((succeeded >= 1) & (failed == 0)))
+        if args.breakdown and wp.get_device().is_cuda:
+            row["kernels"] = kernel_breakdown(ex)
         rows.append(row)
         del ex
     return rows
@@ -146,8 +152,22 @@ def main():
     parser.add_argument("--per-world", type=int, nargs="+", default=[1000, 4000], help="Particles per world.")
     parser.add_argument("--warmup", type=int, default=10, help="Frames before timing.")
     parser.add_argument("--frames", type=int, default=60, help="Frames timed.")
+    parser.add_argument(
+        "--collide-every", type=int, nargs="+", default=[1], help="Substeps between collision runs (each value a run)."
+    )
+    parser.add_argument(
+        "--task-frames",
+        type=int,
+        default=0,
+        help="Pouring: run this many frames in all, then report the share of worlds whose scripted pour succeeded.",
+    )
     parser.add_argument("--max-particles", type=int, default=20_000_000, help="Skip larger configurations.")
-    parser.add_argument("--breakdown", action="store_true", help="Also time the parts of a frame without a graph.")
+    parser.add_argument(
+        "--breakdown",
+        action="store_true",
+        help="Also the GPU time of each kernel over a frame run without a graph (CUDA).",
+    )
+    parser.add_argument("--top", type=int, default=8, help="Kernels listed per configuration with --breakdown.")
     parser.add_argument("--json", type=str, default=None)
     parser.add_argument("--plot", type=str, default=None, help="PNG of env-steps/s against worlds.")
     parser.add_argument("--quiet", action="store_true")
@@ -163,13 +183,16 @@ def main():
         print(
             f"{r['scene']:<11}{r['worlds']:>7}{r['particles_per_world']:>10.0f}{r['ms_per_frame']:>10.2f}"
             f"{r['batch_frames_per_s']:>10.1f}{r['env_steps_per_s']:>13,.0f}{100 * r['mean_abs_density_error']:>11.2f}%"
-            + (
-                f"   collide {r['collide_ms']:.2f} ms, step {r['solver_step_ms']:.2f} ms"
-                + (f", task {r['task_ms']:.2f} ms" if "task_ms" in r else "")
-                if "collide_ms" in r
-                else ""
-            )
+            f"   {r['compressed_particle_substeps']:,} particle substeps past 10 % (peak "
+            f"{100 * r['peak_compression']:.0f} %), neighbours max {r['neighbors_max']}, collide every "
+            f"{r['collide_every']}"
+            + (f", {100 * r['worlds_poured']:.0f} % of worlds poured" if "worlds_poured" in r else "")
         )
+        if "kernels" in r:
+            total = sum(k[1] for k in r["kernels"])
+            print(f"    {total:.2f} ms of kernels in a frame without a graph; the largest:")
+            for name, ms, count in r["kernels"][: args.top]:
+                print(f"    {ms:8.3f} ms {count:5d} x {name}")
     if args.json:
         with open(args.json, "w") as f:
             json.dump({**machine_record(device), "rows": rows}, f, indent=1)

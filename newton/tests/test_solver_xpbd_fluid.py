@@ -651,6 +651,61 @@ def test_floating_box_draft_matches_archimedes(test, device):
         test.assertAlmostEqual(draft / (density / 1000.0 * 2.0 * box), 1.0, delta=0.15)
 
 
+def test_kinematic_walls_lend_density_like_static_ones(test, device):
+    """A tank on a kinematic body (placed through its pose) holds the fluid exactly as the same static tank."""
+
+    def build(b, body_pose):
+        add_block(b, (5, 5, 6), origin=(-0.2, -0.2, 0.05))
+        b.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(mu=0.0))
+        cfg = newton.ModelBuilder.ShapeConfig(mu=0.0, density=0.0, has_shape_collision=False)
+        body = -1
+        if body_pose is not None:
+            body = b.add_body(xform=wp.transform(body_pose, wp.quat_identity()), is_kinematic=True)
+        for center, half in (((-0.3, 0, 0.5), (0.05, 0.35, 0.5)), ((0.3, 0, 0.5), (0.05, 0.35, 0.5)),
+                             ((0, -0.3, 0.5), (0.25, 0.05, 0.5)), ((0, 0.3, 0.5), (0.25, 0.05, 0.5))):  # fmt: skip
+            local = np.array(center) - (np.zeros(3) if body_pose is None else np.array(body_pose))
+            b.add_shape_box(body, xform=wp.transform(wp.vec3(*local), wp.quat_identity()), hx=half[0], hy=half[1],
+                            hz=half[2], cfg=cfg)  # fmt: skip
+
+    runs = {}
+    for name, pose in (("static", None), ("kinematic", (0.4, -0.2, 0.1))):
+        model = make_model(device, lambda b, pose=pose: build(b, pose), gravity=-9.81)
+        model.soft_contact_mu = 0.0
+        sim = Sim(model, contacts=True)
+        sim.step(10)
+        runs[name] = sim.q()[: 5 * 5 * 6]
+    # the walls moved the fluid (it is not just falling freely) ...
+    test.assertGreater(np.abs(runs["static"][:, :2]).max(), 0.2 - 1.0e-3)
+    # ... and the kinematic tank, its shapes placed by the body's pose, held it the same way
+    # (within float rounding: the contacts come in another order; without the kinematic walls' density
+    # the fluid ends up to 0.15 m elsewhere)
+    np.testing.assert_allclose(runs["kinematic"], runs["static"], atol=1.0e-3)
+
+
+def test_dropped_wall_contacts_are_reported(test, device):
+    """A collision buffer too small for the particles at the walls: the diagnostics say how many were dropped."""
+
+    def build(b):
+        add_block(b, (6, 6, 3), origin=(0.05, 0.05, 0.05))
+        b.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(mu=0.0))
+
+    model = make_model(device, build, gravity=-9.81)
+    for room, expect_warning in ((10, True), (4 * model.particle_count, False)):
+        sim = Sim(model)
+        sim.collision = newton.CollisionPipeline(model, soft_contact_max=room, soft_contact_gap=0.5 * D)
+        sim.contacts = sim.collision.contacts()
+        sim.step(1)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            stats = sim.solver.fluid_diagnostics(sim.state_0)
+        dropped = [w for w in caught if "particle-shape contacts" in str(w.message)]
+        # the bottom layer, 36 particles, touches the ground
+        test.assertEqual(stats["soft_contacts_dropped"], 36 - 10 if expect_warning else 0)
+        test.assertEqual(len(dropped), int(expect_warning))
+        if expect_warning:
+            test.assertIn("soft_contact_max >= 36", str(dropped[0].message))
+
+
 def test_nonfinite_particles_recovered_and_counted(test, device):
     # with vorticity confinement on, its pass (the substep's last) does the recovery
     for vorticity in (0.0, 0.5):

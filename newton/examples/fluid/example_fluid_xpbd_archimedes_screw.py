@@ -97,7 +97,7 @@ class Example(FluidExample):
     cpu_particle_count = 6_000
 
     def __init__(self, viewer, args):
-        super().__init__(viewer)
+        super().__init__(viewer, args)
         x_lo, x_hi, hy = BASIN
         volume = (x_hi - x_lo) * 2.0 * hy * DEPTH
         d = (volume / args.particle_count) ** (1.0 / 3.0)

@@ -78,7 +78,7 @@ class Example(FluidExample):
     default_particle_count = 20_000
 
     def __init__(self, viewer, args):
-        super().__init__(viewer)
+        super().__init__(viewer, args)
         volume = math.pi * CUP_RADIUS**2 * FILL
         d = (volume / args.particle_count) ** (1.0 / 3.0)
         self.spacing = d

@@ -86,7 +86,7 @@ def add_dam_break(builder: newton.ModelBuilder, particle_count: int, obstacles: 
 
 class Example(FluidExample):
     def __init__(self, viewer, args):
-        super().__init__(viewer)
+        super().__init__(viewer, args)
         builder = newton.ModelBuilder()
         self.scene = add_dam_break(builder, args.particle_count, obstacles=True)
         self.model = builder.finalize()

@@ -39,7 +39,7 @@ class Example(FluidExample):
     default_particle_count = 60_000
 
     def __init__(self, viewer, args):
-        super().__init__(viewer)
+        super().__init__(viewer, args)
 
         # spacing from the particle budget: the pool and the column share it by volume
         volume = (2 * BASIN_HALF) ** 2 * POOL_DEPTH + (2 * COLUMN_HALF) ** 2 * COLUMN_HEIGHT

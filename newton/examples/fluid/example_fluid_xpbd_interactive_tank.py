@@ -35,7 +35,7 @@ BOXES = ((-0.25, 250.0), (0.0, 700.0), (0.25, 2500.0))  # x [m], density [kg/m^3
 
 class Example(FluidExample):
     def __init__(self, viewer, args):
-        super().__init__(viewer)
+        super().__init__(viewer, args)
         d = ((2 * TANK_HALF) ** 2 * WATER_DEPTH / args.particle_count) ** (1.0 / 3.0)
         self.spacing = d
         builder = newton.ModelBuilder()

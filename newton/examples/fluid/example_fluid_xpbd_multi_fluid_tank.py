@@ -45,7 +45,7 @@ BOXES = ((-0.2, 900.0), (0.2, 1150.0))  # x [m], density [kg/m^3]
 
 class Example(FluidExample):
     def __init__(self, viewer, args):
-        super().__init__(viewer)
+        super().__init__(viewer, args)
         hx, hy = TANK_HALF
         d = (4.0 * hx * hy * FILL_HEIGHT / args.particle_count) ** (1.0 / 3.0)
         self.spacing = d

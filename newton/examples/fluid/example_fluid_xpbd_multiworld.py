@@ -37,7 +37,7 @@ class Example(FluidExample):
     particle_count_help = "Fluid particles over all worlds"
 
     def __init__(self, viewer, args):
-        super().__init__(viewer)
+        super().__init__(viewer, args)
         self.world_count = args.world_count
 
         # spacing from the particle budget over all worlds

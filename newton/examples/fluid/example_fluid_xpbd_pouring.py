@@ -214,7 +214,7 @@ class Example(FluidTask):
     cpu_particle_count = 500
 
     def __init__(self, viewer, args):
-        super().__init__(viewer)
+        super().__init__(viewer, args)
         self.world_count = args.world_count
         self.policy = args.policy
         volume = math.pi * CUP_RADIUS**2 * FILL

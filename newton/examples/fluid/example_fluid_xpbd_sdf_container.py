@@ -50,7 +50,7 @@ def back_half(mesh: newton.Mesh) -> newton.Mesh:
 
 class Example(FluidExample):
     def __init__(self, viewer, args):
-        super().__init__(viewer)
+        super().__init__(viewer, args)
         # spacing from the volume of the cavity below the fill level
         zs = np.linspace(WALL, FILL, 200)
         volume = np.trapezoid(np.pi * inner_radius(zs) ** 2, zs)

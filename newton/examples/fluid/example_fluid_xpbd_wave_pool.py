@@ -86,7 +86,7 @@ def archimedes_height(level, density):
 
 class Example(FluidExample):
     def __init__(self, viewer, args):
-        super().__init__(viewer)
+        super().__init__(viewer, args)
         hx, hy = POOL_HALF
         x0 = PADDLE_X + PADDLE_HALF[0] + STROKE  # water starts in front of the paddle's stroke; behind it is dry
         shore = BEACH_TOE + DEPTH / math.tan(BEACH_SLOPE)

@@ -141,7 +141,9 @@ def fluid_diagnostics(self, state) -> dict:
         ``density_subiterations`` (total density passes that corrected, with ``fluid_max_iterations`` > 1
         or a ``fluid_density_tolerance`` set at construction),
         ``fast_particle_substeps`` (particle substeps that ended with a velocity carrying the particle more
-        than one rest distance in a substep; a ``RuntimeWarning`` says when it grew since the last call).
+        than one rest distance in a substep; a ``RuntimeWarning`` says when it grew since the last call),
+        ``soft_contacts_dropped`` (particle-shape contacts the last step's collision found beyond the
+        ``Contacts`` buffer's ``soft_contact_max``, so dropped with the walls they stand for; warns).
         Empty for a model without fluid.
     """
     if self._fluid is None:
@@ -242,7 +244,9 @@ def activate(xpbd_module) -> None:
     def integrate_particles(self, model, state_in, state_out, dt):
         upstream_integrate(self, model, state_in, state_out, dt)
         if self._fluid is not None:
-            self._fluid.build_neighborhood(state_out.particle_q, state_in.particle_q, state_out.particle_qd)
+            self._fluid.build_neighborhood(
+                state_out.particle_q, state_in.particle_q, state_out.particle_qd, state_in.body_q
+            )
 
     def _apply_particle_deltas(self, model, state_in, state_out, particle_deltas, dt):
         if self._fluid is not None:

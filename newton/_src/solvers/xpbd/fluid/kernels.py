@@ -25,6 +25,7 @@ References:
 import warp as wp
 
 from ....geometry import ParticleFlags
+from ....sim.enums import BodyFlags
 
 # approximate division and square root in CUDA code (Warp ignores it on the CPU): up to a few hundred
 # thousand particles a pass takes as long as one thread's chain of dependent steps, and each pair's
@@ -384,33 +385,43 @@ def fluid_wall_share(
 
 @wp.struct
 class FluidWallContacts:
-    """The particle-shape contacts a neighbour build lists as static walls (``contact_max`` 0: none)."""
+    """The particle-shape contacts a neighbour build lists as walls (``contact_max`` 0: none)."""
 
     count: wp.array[int]  # contacts found (one element)
     particle: wp.array[int]
     shape: wp.array[int]
     point: wp.array[wp.vec3]  # contact point on the shape, in its body's frame (static: world) [m]
-    normal: wp.array[wp.vec3]
+    normal: wp.array[wp.vec3]  # world frame
     contact_max: int
     shape_body: wp.array[int]  # body of each shape, -1 for a static one
+    body_q: wp.array[wp.transform]  # body poses of the step (kinematic bodies keep theirs through it)
+    body_flags: wp.array[wp.int32]
 
 
 @wp.func
 def list_wall_contact(k: int, walls: FluidWallContacts, slot_of_particle: wp.array[wp.int32], slots: FluidSlots):
-    """List particle-shape contact ``k`` as a wall of its particle's slot, if its shape is static.
+    """List particle-shape contact ``k`` as a wall of its particle's slot, if its shape is static or kinematic.
 
-    Once per step, after the build cleared the slots' counts. Walls of moving bodies would need
-    their reaction on the body: only static shapes lend density.
+    Once per step, after the build cleared the slots' counts. A wall lends the density of the fluid
+    missing behind it, and pushes the fluid with it: a dynamic body would have to take the reaction,
+    so only static shapes and those of kinematic bodies (which take none: they move as prescribed)
+    lend density. A kinematic wall is placed where its body is during the step.
     """
     if k >= wp.min(walls.count[0], walls.contact_max):
         return
     slot = slot_of_particle[walls.particle[k]]
-    if slot < 0 or walls.shape_body[walls.shape[k]] >= 0:
+    if slot < 0:
         return
+    body = walls.shape_body[walls.shape[k]]
+    point = walls.point[k]
+    if body >= 0:
+        if (walls.body_flags[body] & int(BodyFlags.KINEMATIC)) == 0:
+            return
+        point = wp.transform_point(walls.body_q[body], point)
     t = wp.atomic_add(slots.wall_count, slot, 1)
     if t < WALL_CONTACTS_PER_SLOT:
         normal = walls.normal[k]
-        plane = wp.vec4(normal[0], normal[1], normal[2], wp.dot(normal, walls.point[k]))
+        plane = wp.vec4(normal[0], normal[1], normal[2], wp.dot(normal, point))
         slots.wall_plane[t * slots.particle.shape[0] + slot] = plane
 
 

@@ -22,6 +22,7 @@ import numpy as np
 import warp as wp
 
 from ....geometry import ParticleFlags
+from ....sim.enums import BodyFlags
 from .diffuse import (
     DIFFUSE_BLOCK_DIM,
     DIFFUSE_DEAD,
@@ -390,7 +391,6 @@ class FluidSolver:
                 self.diffuse.kind = wp.full(c, DIFFUSE_DEAD, dtype=wp.int32)
                 self.diffuse.world = wp.full(c, -1, dtype=wp.int32)
                 self.diffuse.counters = wp.zeros(3, dtype=wp.int32)
-                self._no_bodies = wp.zeros(0, dtype=wp.transform)
         # render particles, allocated by the first update_render_particles()
         self.render_positions = None
         self.render_anisotropy = None
@@ -398,7 +398,19 @@ class FluidSolver:
         self.render_anisotropy_tertiary = None
         #: particle-shape contacts of the step in progress (set by the solver), for the wall density
         self.contacts = None
-        self._has_walls = bool(model.shape_count) and bool((model.shape_body.numpy() < 0).any())
+        # static shapes and those of kinematic bodies lend density (see list_wall_contact)
+        self._has_walls = False
+        if model.shape_count:
+            shape_body = model.shape_body.numpy()
+            kinematic = np.zeros(len(shape_body), dtype=bool)
+            if model.body_count:
+                flags = model.body_flags.numpy()
+                on_body = shape_body >= 0
+                kinematic[on_body] = (flags[shape_body[on_body]] & int(BodyFlags.KINEMATIC)) != 0
+            self._has_walls = bool(((shape_body < 0) | kinematic).any())
+        with wp.ScopedDevice(self.device):
+            self._no_bodies = wp.zeros(1, dtype=wp.transform)
+            self._no_body_flags = wp.zeros(1, dtype=wp.int32)
         # the second stream (see CONCURRENT_PASSES), and whether work on it has not been joined yet
         self._side_stream = wp.Stream(self.device) if self.device.is_cuda and CONCURRENT_PASSES else None
         self._side_pending = False
@@ -485,7 +497,7 @@ class FluidSolver:
             self.device.stream.wait_stream(self._side_stream)
             self._side_pending = False
 
-    def build_neighborhood(self, particle_q: wp.array, particle_q_start=None, particle_qd=None) -> None:
+    def build_neighborhood(self, particle_q: wp.array, particle_q_start=None, particle_qd=None, body_q=None) -> None:
         """Sort the fluid at ``particle_q`` and list its neighbours.
 
         After prediction (``particle_q_start`` and ``particle_qd`` given) each fluid particle's travel
@@ -507,6 +519,8 @@ class FluidSolver:
             walls.normal = contacts.soft_contact_normal
             walls.contact_max = contacts.soft_contact_max
             walls.shape_body = m.shape_body
+            walls.body_q = body_q if body_q is not None and m.body_count else self._no_bodies
+            walls.body_flags = m.body_flags if m.body_count else self._no_body_flags
         s = self.search
         # (the travel limit writes the positions upstream goes on with: not beside it)
         s.compute_keys(particle_q, m.particle_flags, m.particle_world, self.params, particle_q_start, particle_qd)
@@ -1011,6 +1025,23 @@ class FluidSolver:
         self._nonfinite_reported = count
         return count
 
+    def _report_dropped_contacts(self) -> int:
+        """Particle-shape contacts the last collision found beyond its buffer (dropped); warns when there were any."""
+        c = self.contacts
+        if c is None or getattr(c, "soft_contact_count", None) is None:
+            return 0
+        found, room = int(c.soft_contact_count.numpy()[0]), int(c.soft_contact_max)
+        if found <= room:
+            return 0
+        warnings.warn(
+            f"the last collision found {found} particle-shape contacts and its buffer holds {room}: "
+            f"{found - room} were dropped, and with them walls (fluid passes through them and misses their "
+            f"density); create the CollisionPipeline with soft_contact_max >= {found}",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+        return found - room
+
     def _report_compression(self, mean: float, peak: float) -> None:
         """Warn when the mean compression rises past ``COMPRESSION_WARNING`` (once, until it falls below again)."""
         over = mean > COMPRESSION_WARNING
@@ -1049,6 +1080,7 @@ class FluidSolver:
         some = float(active > 0)
         self._report_compression(float(v[3] * per), float(v[4] * some))
         compressed, peak = self._report_peaks()
+        dropped = self._report_dropped_contacts()
         return {
             "active_particles": active,
             "rest_density": self.rest_density,
@@ -1066,6 +1098,7 @@ class FluidSolver:
             "peak_compression": peak,
             "fast_particle_substeps": self._report_fast_particles(),
             "density_subiterations": int(self.subiterations_total.numpy()[0]),
+            "soft_contacts_dropped": dropped,
         }
 
 
