@@ -118,6 +118,27 @@ def run(args) -> list[dict]:
     return rows
 
 
+def report(rows: list[dict], args) -> None:
+    """Print the table (and, for rows with a breakdown, the largest kernels)."""
+    header = f"{'scene':<11}{'worlds':>7}{'per world':>10}{'ms/frame':>10}{'frames/s':>10}{'env-steps/s':>13}{'density err':>12}"
+    print(f"{rows[0]['substeps']} substeps x {rows[0]['iterations']} iterations")
+    print(header)
+    for r in rows:
+        print(
+            f"{r['scene']:<11}{r['worlds']:>7}{r['particles_per_world']:>10.0f}{r['ms_per_frame']:>10.2f}"
+            f"{r['batch_frames_per_s']:>10.1f}{r['env_steps_per_s']:>13,.0f}{100 * r['mean_abs_density_error']:>11.2f}%"
+            f"   {r['compressed_particle_substeps']:,} particle substeps past 10 % (peak "
+            f"{100 * r['peak_compression']:.0f} %), neighbours max {r['neighbors_max']}, collide every "
+            f"{r['collide_every']}"
+            + (f", {100 * r['worlds_poured']:.0f} % of worlds poured" if "worlds_poured" in r else "")
+        )
+        if "kernels" in r:
+            total = sum(k[1] for k in r["kernels"])
+            print(f"    {total:.2f} ms of kernels in a frame without a graph; the largest:")
+            for name, ms, count in r["kernels"][: args.top]:
+                print(f"    {ms:8.3f} ms {count:5d} x {name}")
+
+
 def plot(rows: list[dict], path: str) -> None:
     import matplotlib  # noqa: PLC0415
 
@@ -125,14 +146,14 @@ def plot(rows: list[dict], path: str) -> None:
     import matplotlib.pyplot as plt  # noqa: PLC0415
 
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    for key in sorted({(r["scene"], round(r["particles_per_world"], -2)) for r in rows}):
-        sel = [r for r in rows if (r["scene"], round(r["particles_per_world"], -2)) == key]
-        ax.plot(
-            [r["worlds"] for r in sel],
-            [r["env_steps_per_s"] for r in sel],
-            "o-",
-            label=f"{key[0]}, ~{key[1]:.0f} per world",
-        )
+
+    def curve(r):
+        return (r["scene"], round(r["particles_per_world"], -2), r.get("collide_every", 1))
+
+    for key in sorted({curve(r) for r in rows}):
+        sel = [r for r in rows if curve(r) == key]
+        label = f"{key[0]}, ~{key[1]:.0f} per world" + (f", collide every {key[2]}" if key[2] > 1 else "")
+        ax.plot([r["worlds"] for r in sel], [r["env_steps_per_s"] for r in sel], "o-", label=label)
     ax.axhline(1.0e5, color="gray", ls="--", lw=0.8, label="100k env-steps/s")
     ax.set_xscale("log")
     ax.set_yscale("log")
@@ -170,29 +191,23 @@ def main():
     parser.add_argument("--top", type=int, default=8, help="Kernels listed per configuration with --breakdown.")
     parser.add_argument("--json", type=str, default=None)
     parser.add_argument("--plot", type=str, default=None, help="PNG of env-steps/s against worlds.")
+    parser.add_argument(
+        "--from-json", type=str, nargs="+", default=None, help="Print and plot these results instead of running."
+    )
     parser.add_argument("--quiet", action="store_true")
     args = parser.parse_args()
+    if args.from_json:
+        records = [json.load(open(path)) for path in args.from_json]
+        rows = [r for record in records for r in record["rows"]]
+        print(f"device {records[0]['device']}, {records[0]['date']}")
+        report(rows, args)
+        if args.plot:
+            plot(rows, args.plot)
+        return
     device = wp.get_device()
     rows = run(args)
-    header = f"{'scene':<11}{'worlds':>7}{'per world':>10}{'ms/frame':>10}{'frames/s':>10}{'env-steps/s':>13}{'density err':>12}"
-    print(
-        f"device {device.name if device.is_cuda else 'cpu'}, {rows[0]['substeps']} substeps x {rows[0]['iterations']} iterations"
-    )
-    print(header)
-    for r in rows:
-        print(
-            f"{r['scene']:<11}{r['worlds']:>7}{r['particles_per_world']:>10.0f}{r['ms_per_frame']:>10.2f}"
-            f"{r['batch_frames_per_s']:>10.1f}{r['env_steps_per_s']:>13,.0f}{100 * r['mean_abs_density_error']:>11.2f}%"
-            f"   {r['compressed_particle_substeps']:,} particle substeps past 10 % (peak "
-            f"{100 * r['peak_compression']:.0f} %), neighbours max {r['neighbors_max']}, collide every "
-            f"{r['collide_every']}"
-            + (f", {100 * r['worlds_poured']:.0f} % of worlds poured" if "worlds_poured" in r else "")
-        )
-        if "kernels" in r:
-            total = sum(k[1] for k in r["kernels"])
-            print(f"    {total:.2f} ms of kernels in a frame without a graph; the largest:")
-            for name, ms, count in r["kernels"][: args.top]:
-                print(f"    {ms:8.3f} ms {count:5d} x {name}")
+    print(f"device {device.name if device.is_cuda else 'cpu'}")
+    report(rows, args)
     if args.json:
         with open(args.json, "w") as f:
             json.dump({**machine_record(device), "rows": rows}, f, indent=1)

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/performance.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|surge|diffuse|render|usd|gallery|gltests|tests]...
 set -u
 out=${1:?output folder}; shift
 export PYTHONUNBUFFERED=1
@@ -72,6 +72,21 @@ for what in "$@"; do
     diffuse)
       # the same run with diffuse particles on (25,000 capacity), against the plain one of 'bench'
       python3 benchmarks/dam_break.py --diffuse 25000 --trials 3 --json "$out/dam_break_100k_diffuse.json" 2>&1 | grep -A1 "^device" ;;
+    worlds)
+      # batched worlds: env-steps/s against world count (docs/batched.rst, docs/images/batched_worlds.png)
+      bw="python3 -W ignore benchmarks/batched_worlds.py"
+      $bw --scene pouring --worlds 1 16 256 1024 4096 --per-world 1000 --frames 30 --warmup 5 --task-frames 220 \
+        --json "$out/batched_pouring_1000_${gpu}.json" 2>&1 | grep -v '^Module'
+      $bw --scene pouring --worlds 4096 --per-world 1000 --collide-every 2 --frames 30 --warmup 5 --task-frames 220 \
+        --json "$out/batched_pouring_1000_k2_${gpu}.json" 2>&1 | grep -v '^Module'
+      $bw --scene pouring --worlds 1 16 256 1024 --per-world 4000 --frames 20 --warmup 5 \
+        --json "$out/batched_pouring_4000_${gpu}.json" 2>&1 | grep -v '^Module'
+      $bw --scene multiworld --worlds 16 256 1024 4096 --per-world 1000 --frames 20 --warmup 5 \
+        --json "$out/batched_multiworld_1000_${gpu}.json" 2>&1 | grep -v '^Module'
+      $bw --scene pouring --worlds 4096 --per-world 1000 --frames 10 --warmup 5 --breakdown --top 14 \
+        --json "$out/batched_pouring_breakdown_${gpu}.json" 2>&1 | grep -v '^Module'
+      $bw --from-json "$out"/batched_pouring_1000_${gpu}.json "$out"/batched_pouring_1000_k2_${gpu}.json \
+        "$out"/batched_pouring_4000_${gpu}.json "$out"/batched_multiworld_1000_${gpu}.json --plot "$out/batched_worlds.png" ;;
     gallery)
       # every example captured at its default particle count (1280x720, 30 fps from 60 Hz), its last frame kept:
       # the stills of docs/gallery.rst and the capture throughput of docs/performance.md.
@@ -98,7 +113,8 @@ for what in "$@"; do
       python3 benchmarks/usd_surface.py --frames 30 --json "$out/usd_surface_100k_${gpu}.json" 2>&1 | grep -v '^Module' ;;
     tests)
       python3 -m pytest -q -k cuda newton/tests/test_solver_xpbd_fluid.py newton/tests/test_fluid_examples.py \
-        newton/tests/test_fluid_surface_mesh.py \
+        newton/tests/test_fluid_surface_mesh.py newton/tests/test_fluid_reset.py newton/tests/test_fluid_sensor.py \
+        newton/tests/test_fluid_tasks.py \
         newton/tests/test_fluid_extension.py newton/tests/test_fluid_diffuse.py newton/tests/test_fluid_render_particles.py \
         newton/tests/test_fluid_validation.py newton/tests/test_fluid_picking.py newton/tests/test_fluid_stress.py \
         2>&1 | tail -25 ;;

@@ -214,7 +214,7 @@ def test_every_example_is_tested_and_listed(test, device):
     package = importlib.import_module("newton.examples.fluid")
     here = Path(next(iter(package.__path__)))
     modules = sorted(p.stem.removeprefix("example_") for p in here.glob("example_fluid_xpbd_*.py"))
-    test.assertEqual(len(modules), 9)
+    test.assertEqual(len(modules), 10)
     test.assertEqual(sorted(EXAMPLES), modules)
     listings = readme_listings()
     if listings is None:

@@ -283,7 +283,11 @@ class Example(FluidTask):
         self.setup_task()
         gap = 2 * TANK_HALF + 0.25
         self.viewer.set_world_offsets((gap, gap, 0.0))
-        self.viewer.set_camera(wp.vec3(0.0, -0.9, 0.6), pitch=-28.0, yaw=90.0)
+        # look at the middle of the grid of worlds, from farther away the more there are
+        offsets = self.viewer.world_offsets
+        middle = offsets.numpy().mean(axis=0) if offsets is not None else np.zeros(3)
+        reach = 0.25 + 0.28 * math.sqrt(self.world_count)
+        self.viewer.set_camera(wp.vec3(middle[0], middle[1] - reach, 0.25 + 0.6 * reach), pitch=-32.0, yaw=90.0)
 
     # --- the task (see FluidTask) ---------------------------------------------------------------
 
