@@ -25,7 +25,7 @@ EXAMPLES = {
     "fluid_xpbd_multi_fluid_tank": (["--particle-count", "3000"], 300),
     "fluid_xpbd_sdf_container": (["--particle-count", "3000"], 240),
     "fluid_xpbd_wave_pool": (["--particle-count", "4500"], 240),
-    "fluid_xpbd_cup_transfer": (["--particle-count", "2000"], 540),
+    "fluid_xpbd_cup_transfer": (["--world-count", "2", "--particle-count", "1000"], 540),
     "fluid_xpbd_archimedes_screw": (["--particle-count", "6000"], 240),
     "fluid_xpbd_pouring": (["--world-count", "2", "--particle-count", "400"], 240),
 }

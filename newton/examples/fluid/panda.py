@@ -31,6 +31,11 @@ PANDA_DH = (
 )
 FLANGE_D = 0.107  # flange offset along joint 7's axis [m]
 HAND_LENGTH = 0.1034  # flange to the fingertips' centre (Franka Hand) [m]
+#: joint position limits [rad], lower and upper, and velocity limits [rad/s] (Franka Emika, "Robot and
+#: interface specifications")
+JOINT_LOWER = (-2.8973, -1.7628, -2.8973, -3.0718, -2.8973, -0.0175, -2.8973)
+JOINT_UPPER = (2.8973, 1.7628, 2.8973, -0.0698, 2.8973, 3.7525, 2.8973)
+JOINT_SPEED = (2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61)
 #: joint angles of Franka's "ready" pose [rad]: flange pointing down in front of the base
 READY = (0.0, -math.pi / 4, 0.0, -3 * math.pi / 4, 0.0, math.pi / 2, math.pi / 4)
 
@@ -123,8 +128,8 @@ def add_panda(builder: newton.ModelBuilder, link_radius: float = 0.045) -> list[
 
 
 @wp.func
-def path_angles(t: float, times: wp.array[float], angles: wp.array2d[float], j: int):
-    """Joint ``j``'s angle [rad] at time ``t`` [s]: smoothstep between keyframes (rest at each keyframe)."""
+def path_angle(t: float, times: wp.array[float], angles: wp.array2d[float], j: int):
+    """Joint ``j``'s angle [rad] on a keyframe path at time ``t`` [s]: smoothstep between keyframes (rest at each)."""
     n = times.shape[0]
     if t <= times[0]:
         return angles[0, j]
@@ -137,42 +142,35 @@ def path_angles(t: float, times: wp.array[float], angles: wp.array2d[float], j: 
 
 
 @wp.func
-def link_pose(t: float, link: int, frames: wp.array[wp.transform], times: wp.array[float], angles: wp.array2d[float]):
+def link_pose(q: wp.array2d[float], w: int, link: int, frames: wp.array[wp.transform]):
+    """World pose of ``link`` (0: base) of world ``w``'s arm at the joint angles ``q[w]`` [rad]."""
     x = wp.transform_identity()
     for j in range(link):
-        x = (
-            x
-            * frames[j]
-            * wp.transform(
-                wp.vec3(0.0), wp.quat_from_axis_angle(wp.vec3(0.0, 0.0, 1.0), path_angles(t, times, angles, j))
-            )
-        )
+        x = x * frames[j] * wp.transform(wp.vec3(0.0), wp.quat_from_axis_angle(wp.vec3(0.0, 0.0, 1.0), q[w, j]))
     return x
 
 
 @wp.kernel
 def pose_panda(
-    clock: wp.array[float],
+    q_start: wp.array2d[float],
+    q_end: wp.array2d[float],
     dt: float,
-    bodies: wp.array[wp.int32],
+    bodies: wp.array2d[wp.int32],
     frames: wp.array[wp.transform],
-    times: wp.array[float],
-    angles: wp.array2d[float],
     body_q: wp.array[wp.transform],
     body_qd: wp.array[wp.spatial_vector],
 ):
-    """Pose link ``tid`` (0: base) at the end of the coming substep, with the velocity that takes it there."""
-    link = wp.tid()
-    t0 = clock[0]
-    x0 = link_pose(t0, link, frames, times, angles)
-    x1 = link_pose(t0 + dt, link, frames, times, angles)
+    """Pose link ``l`` of world ``w``'s arm at ``q_end``, with the velocity that takes it there from ``q_start`` in ``dt``."""
+    w, link = wp.tid()
+    x0 = link_pose(q_start, w, link, frames)
+    x1 = link_pose(q_end, w, link, frames)
     dq = wp.transform_get_rotation(x1) * wp.quat_inverse(wp.transform_get_rotation(x0))
     axis = wp.vec3(0.0)
     angle = float(0.0)
     wp.quat_to_axis_angle(dq, axis, angle)
     if angle > wp.pi:
         angle -= 2.0 * wp.pi
-    b = bodies[link]
+    b = bodies[w, link]
     body_q[b] = x1
     body_qd[b] = wp.spatial_vector(
         (wp.transform_get_translation(x1) - wp.transform_get_translation(x0)) / dt, axis * (angle / dt)
