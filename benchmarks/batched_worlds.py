@@ -23,6 +23,7 @@ import argparse
 import json
 import time
 
+import dam_break
 import newton.viewer
 import numpy as np
 import warp as wp
@@ -59,16 +60,7 @@ def timed(fn, repeats: int) -> float:
 def kernel_breakdown(example) -> list:
     """GPU time [ms] per kernel name over one frame run without a graph (after one such frame), largest first."""
     example.simulate()
-    wp.synchronize()
-    wp.timing_begin(cuda_filter=wp.TIMING_KERNEL | wp.TIMING_KERNEL_BUILTIN | wp.TIMING_MEMSET | wp.TIMING_MEMCPY)
-    example.simulate()
-    results = wp.timing_end()
-    total = {}
-    for r in results:
-        key = r.name.split("(")[0]
-        t, c = total.get(key, (0.0, 0))
-        total[key] = (t + r.elapsed, c + 1)
-    return sorted(([k, t, c] for k, (t, c) in total.items()), key=lambda x: -x[1])
+    return dam_break.kernel_breakdown(example.simulate, wp.get_device())
 
 
 def run(args) -> list[dict]:

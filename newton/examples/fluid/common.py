@@ -220,6 +220,19 @@ class FluidExample:
             **{**WATER, **material},
         )
 
+    def log_water_by_world(self) -> None:
+        """Draw the water of worlds that share one place side by side, at ``viewer.world_offsets``."""
+        if getattr(self, "_shown", None) is None:
+            self._shown = wp.empty(self.model.particle_count, dtype=wp.vec3, device=self.model.device)
+        wp.launch(
+            offset_by_world,
+            dim=self.model.particle_count,
+            inputs=[self.solver.render_positions, self.model.particle_world, self.viewer.world_offsets],
+            outputs=[self._shown],
+            device=self.model.device,
+        )
+        self.log_water(positions=self._shown)
+
     def log_foam(self, radius: float, **material) -> None:
         """Draw the solver's diffuse particles."""
         s = self.solver

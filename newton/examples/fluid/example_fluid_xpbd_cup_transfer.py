@@ -42,7 +42,7 @@ import warp as wp
 import newton
 import newton.examples
 from newton.examples.fluid.capture import main as capture_or_run
-from newton.examples.fluid.common import offset_by_world, revolved_container
+from newton.examples.fluid.common import revolved_container
 from newton.examples.fluid.panda import (
     FLANGE_D,
     HAND_LENGTH,
@@ -57,7 +57,7 @@ from newton.examples.fluid.panda import (
     path_angle,
     pose_panda,
 )
-from newton.examples.fluid.tasks import FluidTask
+from newton.examples.fluid.tasks import FluidTask, begin_observation, end_observation
 
 CUP_RADIUS = 0.05  # inner radius [m]
 CUP_HEIGHT = 0.12  # inner depth [m]
@@ -183,10 +183,8 @@ def observe_carry(
 ):
     """The task's arrays after a step; with ``first``, of the worlds ``first_mask`` selects after their restart."""
     w = wp.tid()
-    if first != 0 and not first_mask[w]:
+    if not begin_observation(w, first, first_mask, episode_steps):
         return
-    if first == 0:
-        episode_steps[w] = episode_steps[w] + 1
     cup = body_q[bodies[w, 7]] * cup_offset
     centre = wp.transform_get_translation(cup)
     # the cup opens along its frame's +z (CUP_OFFSET turns it over in the hand's frame)
@@ -204,21 +202,23 @@ def observe_carry(
     observations[w, 12] = spilled
     observations[w, 13] = float(episode_steps[w]) * frame_dt
     distance = wp.length(centre - goal)
-    reward = float(0.0)
-    done = False
-    if first == 0:
-        reward = -10.0 * (spilled - previous[w]) - 0.1 * distance
-        arrived = distance < goal_radius and kept >= keep
-        failed = spilled > spill_limit
-        done = arrived or failed
-        if arrived and not failed:
-            episodes[w, 0] = episodes[w, 0] + 1
-        elif done:
-            episodes[w, 1] = episodes[w, 1] + 1
+    reward = -10.0 * (spilled - previous[w]) - 0.1 * distance
+    arrived = distance < goal_radius and kept >= keep
+    failed = spilled > spill_limit
     previous[w] = spilled
-    rewards[w] = reward
-    terminated[w] = done
-    truncated[w] = not done and first == 0 and episode_steps[w] >= max_steps
+    end_observation(
+        w,
+        first,
+        reward,
+        arrived or failed,
+        arrived and not failed,
+        max_steps,
+        episode_steps,
+        episodes,
+        rewards,
+        terminated,
+        truncated,
+    )
 
 
 class Example(FluidTask):
@@ -303,7 +303,6 @@ class Example(FluidTask):
             self.previous = wp.zeros(self.world_count, dtype=float)
             #: per world: episodes that ended at the goal with the water, and others
             self.episodes = wp.zeros((self.world_count, 2), dtype=wp.int32)
-            self.shown = wp.empty(self.model.particle_count, dtype=wp.vec3)
         self.max_episode_steps = round(EPISODE_SECONDS * self.fps)
         self.max_spilled = 0.0  # the largest spilled share of any world at a sampled frame
         self.setup_task()
@@ -388,13 +387,7 @@ class Example(FluidTask):
     gui = FluidTask.viscosity_gui
 
     def log_fluids(self):
-        wp.launch(
-            offset_by_world,
-            dim=self.model.particle_count,
-            inputs=[self.solver.render_positions, self.model.particle_world, self.viewer.world_offsets],
-            outputs=[self.shown],
-        )
-        self.log_water(positions=self.shown)
+        self.log_water_by_world()
 
     def test_final(self):
         assert self.max_spilled == 0.0, f"a world spilled {100 * self.max_spilled:.1f} % of its water"

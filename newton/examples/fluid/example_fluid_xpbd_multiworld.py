@@ -24,7 +24,7 @@ import warp as wp
 import newton
 import newton.examples
 from newton.examples.fluid.capture import main as capture_or_run
-from newton.examples.fluid.common import FluidExample, add_tank, offset_by_world
+from newton.examples.fluid.common import FluidExample, add_tank
 
 TANK_HALF = 0.15  # inner half extent in x and y [m]
 WALL_HEIGHT = 0.3  # [m]
@@ -77,19 +77,12 @@ class Example(FluidExample):
             self.model, iterations=2, fluid_rest_distance=d, fluid_cohesion=0.3, fluid_viscosity=0.02
         )
         self.setup_simulation()
-        self.shown = wp.empty_like(self.state_0.particle_q)
         self.viewer.set_world_offsets((2 * TANK_HALF + 0.15, 2 * TANK_HALF + 0.15, 0.0))
         self.viewer.set_camera(wp.vec3(0.0, -1.6, 2.2), pitch=-52.0, yaw=90.0)
 
     def log_fluids(self):
         # all worlds overlap in the simulation; draw each at its tank's place in the grid
-        wp.launch(
-            offset_by_world,
-            dim=self.model.particle_count,
-            inputs=[self.solver.render_positions, self.model.particle_world, self.viewer.world_offsets],
-            outputs=[self.shown],
-        )
-        self.log_water(positions=self.shown)
+        self.log_water_by_world()
 
     def test_final(self):
         q = self.state_0.particle_q.numpy()

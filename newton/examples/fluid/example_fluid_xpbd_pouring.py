@@ -41,8 +41,8 @@ import warp as wp
 import newton
 import newton.examples
 from newton.examples.fluid.capture import main as capture_or_run
-from newton.examples.fluid.common import add_tank, offset_by_world, revolved_container
-from newton.examples.fluid.tasks import FluidTask
+from newton.examples.fluid.common import add_tank, revolved_container
+from newton.examples.fluid.tasks import FluidTask, begin_observation, end_observation
 
 CUP_RADIUS = 0.035  # inner radius [m]
 CUP_DEPTH = 0.09  # inner depth [m]
@@ -176,34 +176,25 @@ def observe_pour(
 ):
     """The task's arrays after a step; with ``first``, of the worlds ``first_mask`` selects after their restart."""
     w = wp.tid()
-    if first != 0 and not first_mask[w]:
+    if not begin_observation(w, first, first_mask, episode_steps):
         return
     # regions per world: the cup, the tank, the air above the floor (the sensor orders them by shape)
     in_cup = region_fraction[3 * w]
     in_tank = region_fraction[3 * w + 1]
     spilled = float(spilled_count[w]) / float(wp.max(fluid_count[w], 1))
-    if first == 0:
-        episode_steps[w] = episode_steps[w] + 1
     p = pose[w]
     rel = centroid[w] - wp.vec3(p[0], 0.0, p[1])
     row = (p[0], p[1], p[2], in_cup, in_tank, spilled, rel[0], rel[1], rel[2], float(episode_steps[w]) * frame_dt)
     for j in range(10):
         observations[w, j] = row[j]
-    reward = float(0.0)
-    done = False
-    if first == 0:
-        reward = 10.0 * ((in_tank - previous[w, 0]) - (spilled - previous[w, 1]))
-        done = in_tank >= success or spilled > failure
-        if done:
-            if in_tank >= success and spilled <= 0.05:
-                episodes[w, 0] = episodes[w, 0] + 1
-            else:
-                episodes[w, 1] = episodes[w, 1] + 1
+    reward = 10.0 * ((in_tank - previous[w, 0]) - (spilled - previous[w, 1]))
+    ended = in_tank >= success or spilled > failure
+    succeeded = in_tank >= success and spilled <= 0.05
     previous[w, 0] = in_tank
     previous[w, 1] = spilled
-    rewards[w] = reward
-    terminated[w] = done
-    truncated[w] = not done and first == 0 and episode_steps[w] >= max_steps
+    end_observation(
+        w, first, reward, ended, succeeded, max_steps, episode_steps, episodes, rewards, terminated, truncated
+    )
 
 
 class Example(FluidTask):
@@ -278,7 +269,6 @@ class Example(FluidTask):
             self.previous = wp.zeros((self.world_count, 2), dtype=float)
             #: per world: episodes ended in success (>= SUCCESS in the tank, <= 5 % spilled), and others
             self.episodes = wp.zeros((self.world_count, 2), dtype=wp.int32)
-            self.shown = wp.empty(self.model.particle_count, dtype=wp.vec3)
         self.max_episode_steps = round(EPISODE_SECONDS * self.fps)
         self.setup_task()
         gap = 2 * TANK_HALF + 0.25
@@ -357,13 +347,7 @@ class Example(FluidTask):
     # --- drawing and checking -------------------------------------------------------------------
 
     def log_fluids(self):
-        wp.launch(
-            offset_by_world,
-            dim=self.model.particle_count,
-            inputs=[self.solver.render_positions, self.model.particle_world, self.viewer.world_offsets],
-            outputs=[self.shown],
-        )
-        self.log_water(positions=self.shown)
+        self.log_water_by_world()
 
     def test_final(self):
         succeeded, failed = self.episodes.numpy().T

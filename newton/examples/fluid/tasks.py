@@ -43,6 +43,45 @@ def mask_ended_worlds(terminated: wp.array[wp.bool], truncated: wp.array[wp.bool
         mask[w] = False
 
 
+@wp.func
+def begin_observation(w: int, first: int, first_mask: wp.array[wp.bool], episode_steps: wp.array[wp.int32]):
+    """Whether world ``w`` is observed now (after a step: every world; after restarts: those restarted),
+    counting the step into its episode."""
+    if first != 0:
+        return first_mask[w]
+    episode_steps[w] = episode_steps[w] + 1
+    return True
+
+
+@wp.func
+def end_observation(
+    w: int,
+    first: int,
+    reward: float,
+    ended: bool,
+    succeeded: bool,
+    max_steps: int,
+    episode_steps: wp.array[wp.int32],
+    episodes: wp.array2d[wp.int32],
+    rewards: wp.array[float],
+    terminated: wp.array[wp.bool],
+    truncated: wp.array[wp.bool],
+):
+    """Write world ``w``'s reward and ends (none just after a restart) and count an ended episode as a
+    success (``episodes[w, 0]``) or not (``episodes[w, 1]``)."""
+    if first != 0:
+        reward = 0.0
+        ended = False
+    elif ended:
+        if succeeded:
+            episodes[w, 0] = episodes[w, 0] + 1
+        else:
+            episodes[w, 1] = episodes[w, 1] + 1
+    rewards[w] = reward
+    terminated[w] = ended
+    truncated[w] = not ended and first == 0 and episode_steps[w] >= max_steps
+
+
 @wp.kernel
 def restart_episodes(mask: wp.array[wp.bool], episode_steps: wp.array[wp.int32]):
     w = wp.tid()
