@@ -31,7 +31,7 @@ from run_record import machine_record
 
 import newton
 from newton._src.solvers.xpbd.fluid import neighbors, solver_fluid
-from newton._src.solvers.xpbd.fluid.solver_fluid import wall_density_tables
+from newton._src.solvers.xpbd.fluid.solver_fluid import DEFAULT_NONAFFINE_DAMPING, wall_density_tables
 from newton.examples.fluid.example_fluid_xpbd_dam_break import TANK_HALF_LENGTH, add_dam_break
 from newton.examples.fluid.progress import track
 
@@ -256,6 +256,7 @@ def run(args) -> dict:
         fluid_viscosity=args.viscosity,
         fluid_vorticity=0.0,
         fluid_relaxation=args.relaxation,
+        fluid_nonaffine_damping=args.nonaffine_damping,
         fluid_warm_start=args.warm_start,
         fluid_density_ramp=args.density_ramp,
         fluid_density_tolerance=args.density_tolerance,
@@ -336,7 +337,8 @@ def run(args) -> dict:
         "substeps": args.substeps,
         "iterations": args.iterations,
         "cohesion": args.cohesion,
-        "relaxation": args.relaxation,
+        "relaxation": solver.fluid_relaxation,
+        "nonaffine_damping": args.nonaffine_damping,
         "fluid_warm_start": args.warm_start,
         "fluid_density_ramp": args.density_ramp,
         "fluid_max_iterations": args.density_iterations,
@@ -367,7 +369,10 @@ def main(argv=None):
     parser.add_argument("--substeps", type=int, default=8)
     parser.add_argument("--iterations", type=int, default=2)
     parser.add_argument("--cohesion", type=float, default=1.0)
-    parser.add_argument("--relaxation", type=float, default=1.0)
+    parser.add_argument("--relaxation", type=float, default=None, help="fluid_relaxation (default: the solver's)")
+    parser.add_argument(
+        "--nonaffine-damping", type=float, default=DEFAULT_NONAFFINE_DAMPING, help="fluid_nonaffine_damping"
+    )
     parser.add_argument("--warm-start", type=float, default=0.0, help="fluid_warm_start")
     parser.add_argument("--density-ramp", type=float, default=0.0, help="fluid_density_ramp")
     parser.add_argument("--density-iterations", type=int, default=1, help="fluid_max_iterations")

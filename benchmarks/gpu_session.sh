@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/performance.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|surge|diffuse|render|usd|gallery|gltests|tests]...
 set -u
 out=${1:?output folder}; shift
 export PYTHONUNBUFFERED=1
@@ -14,6 +14,20 @@ for what in "$@"; do
       python3 benchmarks/dam_break.py --kernel-timing --json "$out/dam_break_100k.json" 2>&1 | grep -v '^Module'
       python3 benchmarks/dam_break.py --particles 1000000 --warmup-frames 20 --frames 10 --trials 3 \
         --json "$out/dam_break_1m.json" 2>&1 | grep -v '^Module' ;;
+    still)
+      # still water (docs/validation.md "Still water") and the cost of the step bound and the non-affine damping
+      # (docs/performance.md "Still water"): the solver's defaults against the keywords before them
+      python3 benchmarks/rest_column.py --device cuda:0 --json "$out/rest_column_12x12x24_${gpu}.json" 2>&1 | grep -A1 '^device'
+      python3 benchmarks/rest_column.py --device cuda:0 --n 50 --layers 40 --json "$out/rest_column_50x50x40_${gpu}.json" 2>&1 | grep -A1 '^device'
+      for v in "" "--relaxation 1 --nonaffine-damping 0" "--viscosity 0" "--viscosity 0 --relaxation 1 --nonaffine-damping 0"; do
+        tag=${v//[ -.]/_}; echo "== 100k $v"
+        python3 benchmarks/dam_break.py $v --trials 3 --json "$out/dam_break_100k_still${tag}_${gpu}.json" 2>&1 | grep -A1 "^device"
+      done
+      for v in "" "--relaxation 1 --nonaffine-damping 0"; do
+        tag=${v//[ -.]/_}; echo "== 1M $v"
+        python3 benchmarks/dam_break.py $v --particles 1000000 --warmup-frames 20 --frames 10 --trials 3 \
+          --json "$out/dam_break_1m_still${tag}_${gpu}.json" 2>&1 | grep -A1 "^device"
+      done ;;
     ncu)
       ncu --kernel-name regex:'build_fluid|compute_fluid_density|apply_fluid_density|apply_fluid_visc' \
         --launch-skip 40 --launch-count 4 --section SpeedOfLight --section Occupancy --section LaunchStats \

@@ -60,7 +60,7 @@ def main(argv=None):
     parser.add_argument("--iterations", type=int, default=2)
     parser.add_argument("--viscosity", type=float, default=0.05)
     parser.add_argument("--cohesion", type=float, default=0.0)
-    parser.add_argument("--relaxation", type=float, default=1.0, help="fluid_relaxation")
+    parser.add_argument("--relaxation", type=float, default=None, help="fluid_relaxation (default: the solver's)")
     parser.add_argument("--smoothing", type=float, default=1.8, help="smoothing length over the spacing")
     parser.add_argument("--warm-start", type=float, default=0.0, help="fluid_warm_start")
     parser.add_argument("--density-ramp", type=float, default=0.0, help="fluid_density_ramp")

@@ -34,6 +34,7 @@ import warp as wp
 from run_record import machine_record
 
 import newton
+from newton._src.solvers.xpbd.fluid.solver_fluid import DEFAULT_NONAFFINE_DAMPING
 from newton.examples.fluid.progress import track
 
 DATA = Path(__file__).resolve().parent / "data" / "dam_break_koshizuka_oka_1996.json"
@@ -119,6 +120,8 @@ def build(
         fluid_rest_distance=d,
         fluid_cohesion=args.cohesion,
         fluid_viscosity=args.viscosity,
+        fluid_relaxation=getattr(args, "relaxation", None),
+        fluid_nonaffine_damping=getattr(args, "nonaffine_damping", DEFAULT_NONAFFINE_DAMPING),
         **solver_kwargs,
     )
     pipeline = newton.CollisionPipeline(model, soft_contact_max=model.particle_count, soft_contact_gap=0.5 * d)
@@ -205,6 +208,10 @@ def main(argv=None):
     parser.add_argument("--iterations", type=int, default=2)
     parser.add_argument("--cohesion", type=float, default=0.0)
     parser.add_argument("--viscosity", type=float, default=0.0)
+    parser.add_argument("--relaxation", type=float, default=None, help="fluid_relaxation (default: the solver's)")
+    parser.add_argument(
+        "--nonaffine-damping", type=float, default=DEFAULT_NONAFFINE_DAMPING, help="fluid_nonaffine_damping"
+    )
     parser.add_argument("--speed-clamp", type=float, default=0.0, help="max displacement per substep [radii]; 0: off")
     parser.add_argument("--floor-friction", type=float, default=0.0, help="Coulomb friction of the floor (walls: 0)")
     parser.add_argument(

@@ -81,7 +81,10 @@ def _fluid_particle_contacts(solver_module, model, fluid: FluidSolver):
 
 def _make_property(name: str, mutable: bool):
     def fget(self):
-        return getattr(self._fluid_config, name)
+        value = getattr(self._fluid_config, name)
+        if value is None and name == "fluid_relaxation" and self._fluid is not None:
+            return self._fluid.default_relaxation
+        return value
 
     def fset(self, value):
         if self._fluid is not None:
@@ -239,7 +242,7 @@ def activate(xpbd_module) -> None:
                     f"fluid_rest_distance=None is invalid: the model has {len(fluid_particle)} fluid particles, "
                     "expected a particle spacing in (0, inf) [m]"
                 )
-            self._fluid = FluidSolver(model, config, fluid_particle)
+            self._fluid = FluidSolver(model, config, fluid_particle, self.iterations)
 
     def integrate_particles(self, model, state_in, state_out, dt):
         upstream_integrate(self, model, state_in, state_out, dt)
@@ -360,8 +363,19 @@ _FLUID_DOC = """
             fluid_cohesion: Akinci-style pair cohesion, in [0, 1], for pairs below rest density (where the fluid is
                 at rest density the density constraint holds it). Defaults to 0.
             fluid_viscosity: Per-substep blend toward the neighbourhood velocity, in [0, 1]. Defaults to 0.
+            fluid_nonaffine_damping: Share of each fluid particle's deviation from the affine (uniform,
+                rotating, shearing, expanding) velocity field fitted to its neighbourhood that is removed per
+                substep, in [0, 1]. Defaults to 0.1. It dissipates the particle-scale churn of loaded water
+                (a column at rest settles instead of rearranging forever) and leaves motion the kernel resolves
+                alone; flow squeezed past a body at the particle scale is slowed (a floating box settles in
+                about twice the time). 0 switches it off (no cost while viscosity and vorticity are 0 too).
             fluid_vorticity: Vorticity confinement strength [m/s], >= 0. Defaults to 0 (off).
-            fluid_relaxation: Scale of the density correction, in (0, 2]. Defaults to 1.
+            fluid_relaxation: Scale of the density correction of each Jacobi pass, in (0, 2]. Defaults to None:
+                the largest step for which the rest lattice's shortest waves neither grow from pass to pass nor
+                from substep to substep, from the kernel and the passes a substep may run (0.72 at the default
+                kernel with two iterations, 0.48 with one or with a tolerance that may stop after one pass).
+                Above it the fluid's shortest waves grow and water never comes to rest; reading the property
+                gives the value in use.
             fluid_density_ramp: Compression (of rho/rho0 - 1) over which the density constraint ramps in, in
                 [0, 0.01]. Defaults to 0 (the constraint switches on at rest density). Resting fluid switches
                 that on and off from substep to substep and hums, and its particles drift; 0.001 calms it

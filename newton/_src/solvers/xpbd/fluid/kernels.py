@@ -77,6 +77,10 @@ class FluidParams:
     cohesion_out: float  # (1 - u0) / (h - rest distance) [1/m]
     cohesion_gate: float  # under-density (1 - rho/rho0) of a pair at which its cohesion is full
     viscosity: float  # [0, 1]
+    nonaffine_damping: (
+        float  # share of a velocity's deviation from the kernel-scale affine field removed per substep [0, 1]
+    )
+    affine_regularizer: float  # added to the neighbourhood's position covariance of the affine fit [m^2]
     vorticity: float  # confinement strength [m/s]
     density_tolerance: float  # mean compression at which density sub-iterations stop
     warm_start: float  # share of a substep's summed multipliers that the next substep starts from (0: off)
@@ -293,8 +297,8 @@ def gather_fluid_positions(
 
 @wp.func
 def velocity_pass_on(p: FluidParams):
-    """Whether the viscosity pass runs: for viscosity, or for the vorticity estimate of confinement."""
-    return p.viscosity > 0.0 or p.vorticity > 0.0
+    """Whether the velocity pass runs: for viscosity, the non-affine damping, or the vorticity estimate of confinement."""
+    return p.viscosity > 0.0 or p.nonaffine_damping > 0.0 or p.vorticity > 0.0
 
 
 @wp.kernel
@@ -712,6 +716,26 @@ def store_fluid_warm_start(
     particle_lambda[pi] = p.warm_start * lambda_sum[i]
 
 
+@wp.func
+def affine_velocity_at_particle(s0: float, sx: wp.vec3, sv: wp.vec3, sxx: wp.mat33, svx: wp.mat33, p: FluidParams):
+    """Velocity at the particle of the affine field ``v(x) = v_bar + A (x - x_bar)`` fitted to its neighbourhood.
+
+    The moments are weighted sums over the neighbourhood (the particle included) of 1, the offsets
+    ``r_j = x_j - x_i``, the velocities, ``r_j r_j^T`` and ``v_j r_j^T``. ``A`` is the weighted
+    least-squares velocity gradient ``C_vx (C_xx + eps I)^-1`` (moving least squares of first order),
+    so the field reproduces any uniform, rotating, shearing or expanding motion exactly; ``eps`` keeps a
+    flat or thin neighbourhood (a surface, a filament) from amplifying noise.
+    """
+    inv = 1.0 / s0
+    x_bar = sx * inv
+    v_bar = sv * inv
+    c_xx = sxx * inv - wp.outer(x_bar, x_bar) + wp.identity(n=3, dtype=float) * p.affine_regularizer
+    c_vx = svx * inv - wp.outer(v_bar, x_bar)
+    grad_v = c_vx * wp.inverse(c_xx)
+    # the particle sits at r = 0
+    return v_bar - grad_v * x_bar
+
+
 @wp.kernel
 def apply_fluid_viscosity(
     params: wp.array[FluidParams],
@@ -722,11 +746,17 @@ def apply_fluid_viscosity(
     particle_qd: wp.array[wp.vec3],
     vorticity: wp.array[wp.vec3],
 ):
-    """Blend each velocity toward the mass- and density-weighted (Shepard) neighbourhood velocity.
+    """The substep's velocity pass: XSPH viscosity, non-affine damping and the vorticity estimate, in one loop.
 
-    ``v_i <- v_i + nu (sum_j V_j W_ij v_j / sum_j V_j W_ij - v_i)`` with ``V_j = m_j / rho_j``, the
-    sums including ``j = i``. With vorticity confinement on, the same neighbour loop also
-    estimates the vorticity ``omega_i = sum_j V_j (v_j - v_i) x grad W_ij`` for the confinement pass.
+    Viscosity blends each velocity toward the mass- and density-weighted (Shepard) neighbourhood
+    velocity: ``v_i <- v_i + nu (sum_j V_j W_ij v_j / sum_j V_j W_ij - v_i)`` with ``V_j = m_j / rho_j``,
+    the sums including ``j = i``. The non-affine damping removes the share ``beta`` of the velocity's
+    deviation from the affine field fitted to the neighbourhood with the same weights
+    (:func:`affine_velocity_at_particle`): ``v_i <- v_i + beta (v_aff(x_i) - v_i)``. Motion the kernel
+    resolves (translation, rotation, shear, expansion across ``h``) is left alone; what goes is the
+    particle-scale jitter no smooth field carries. Both act on the velocities of the step's result.
+    With vorticity confinement on, the same loop also estimates the vorticity
+    ``omega_i = sum_j V_j (v_j - v_i) x grad W_ij`` for the confinement pass.
     """
     i = wp.tid()
     pi = slots.particle[i]
@@ -737,12 +767,16 @@ def apply_fluid_viscosity(
     if not velocity_pass_on(p):
         return
     compute_vorticity = p.vorticity > 0.0
+    fit_affine = p.nonaffine_damping > 0.0
     xi4 = slots.xm[i]
     xi = wp.vec3(xi4[0], xi4[1], xi4[2])
     vi = sorted_v[i]
     w_self = xi4[3] / wp.max(density[i], 1.0e-6) * poly6(0.0, p)
     num = vi * w_self
     den = w_self
+    sx = wp.vec3(0.0)
+    sxx = wp.mat33(0.0)
+    svx = wp.mat33(0.0)
     omega = wp.vec3(0.0)
     layout = fluid_neighbor_layout(slots, i)
     count = layout[2]
@@ -757,10 +791,20 @@ def apply_fluid_viscosity(
             vj = sorted_v[j]
             num += vj * w
             den += w
+            if fit_affine:
+                # offsets from the particle to its neighbour
+                sx -= r * w
+                sxx += wp.outer(r, r) * w
+                svx -= wp.outer(vj, r) * w
             if compute_vorticity:
                 omega += wp.cross(vj - vi, spiky_gradient(r, r2, pi, slots.particle, j, p)) * vol_j
+    v = vi
     if p.viscosity > 0.0:
-        particle_qd[pi] = vi + (num / den - vi) * p.viscosity
+        v += (num / den - vi) * p.viscosity
+    if fit_affine:
+        v += (affine_velocity_at_particle(den, sx, num, sxx, svx, p) - vi) * p.nonaffine_damping
+    if p.viscosity > 0.0 or fit_affine:
+        particle_qd[pi] = v
     if compute_vorticity:
         vorticity[i] = omega
 

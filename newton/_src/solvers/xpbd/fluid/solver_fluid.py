@@ -61,6 +61,12 @@ from .reset import reset_diffuse_worlds, reset_fluid_worlds
 
 # smoothing length h = DEFAULT_SMOOTHING_RATIO * rest distance unless given
 DEFAULT_SMOOTHING_RATIO = 1.8
+# share of the particle-scale (non-affine) velocity removed per substep unless given (docs/validation.md, "Still water")
+DEFAULT_NONAFFINE_DAMPING = 0.1
+# share of the stable step (stable_pass_bound) the default relaxation takes on the rest lattice
+JACOBI_STEP_MARGIN = 0.875
+# regulariser of the affine fit's position covariance, relative to the rest distance squared
+AFFINE_REGULARIZER = 1.0e-3
 # one iteration moves a particle by at most this fraction of the rest distance
 MAX_CORRECTION_FRACTION = 0.5
 # largest fluid_density_ramp: a ramp over 1 % compression would hold every loaded particle 0.5 % more compressed
@@ -112,8 +118,9 @@ class FluidConfig:
     fluid_rest_density: float | None = None
     fluid_cohesion: float = 0.0
     fluid_viscosity: float = 0.0
+    fluid_nonaffine_damping: float = DEFAULT_NONAFFINE_DAMPING
     fluid_vorticity: float = 0.0
-    fluid_relaxation: float = 1.0
+    fluid_relaxation: float | None = None
     fluid_density_ramp: float = 0.0
     fluid_max_neighbors: int = 0
     fluid_density_tolerance: float = 0.0
@@ -127,6 +134,7 @@ class FluidConfig:
         "fluid_rest_density",
         "fluid_cohesion",
         "fluid_viscosity",
+        "fluid_nonaffine_damping",
         "fluid_vorticity",
         "fluid_relaxation",
         "fluid_density_ramp",
@@ -158,7 +166,7 @@ class FluidConfig:
         """Validate and store one mutable parameter."""
         if name == "fluid_rest_density":
             v = None if value is None else _real(name, value, 0.0, lo_open=True)
-        elif name in ("fluid_cohesion", "fluid_viscosity"):
+        elif name in ("fluid_cohesion", "fluid_viscosity", "fluid_nonaffine_damping"):
             v = _real(name, value, 0.0, 1.0)
         elif name in ("fluid_vorticity", "fluid_density_tolerance"):
             v = _real(name, value, 0.0)
@@ -169,7 +177,8 @@ class FluidConfig:
         elif name == "fluid_warm_start":
             v = _real(name, value, 0.0, 1.0, hi_open=True)
         elif name == "fluid_relaxation":
-            v = _real(name, value, 0.0, 2.0, lo_open=True)
+            # None: the solver's stable step for its kernel and pass count (FluidSolver.default_relaxation)
+            v = None if value is None else _real(name, value, 0.0, 2.0, lo_open=True)
         elif name == "fluid_density_ramp":
             v = _real(name, value, 0.0, MAX_DENSITY_RAMP)
         else:
@@ -213,6 +222,52 @@ def rest_lattice(rest_distance: float, h: float) -> np.ndarray:
     r = np.arange(-n, n + 1, dtype=np.float64) * rest_distance
     grid = np.stack(np.meshgrid(r, r, r, indexing="ij"), axis=-1).reshape(-1, 3)
     return grid[np.einsum("ij,ij->i", grid, grid) < h * h]
+
+
+def jacobi_spectral_radius(rest_distance: float, h: float, samples: int = 24) -> float:
+    """Largest eigenvalue of one Jacobi pass of the density constraint on the rest lattice.
+
+    A pass moves the particles by ``-J^T D^-1 C`` (``J`` the constraint gradients, ``D`` the diagonal of
+    ``J J^T``), so the constraint error ``C`` goes to ``(I - J J^T D^-1) C``. On the cubic lattice the
+    operator is translation invariant: a displacement wave ``u e^(i k.x)`` changes ``C`` by
+    ``b(k) . u`` with ``b(k) = sum_j grad W(r_j) sin(k . r_j)`` (up to a phase), so the eigenvalue at wave
+    vector ``k`` is ``|b(k)|^2 / sum_j |grad W(r_j)|^2``. Sampled over the Brillouin zone (the largest sits
+    at its edge): 2.43 at the default h = 1.8 d. Above 2 a pass overshoots those modes, and two passes
+    amplify them: the lattice's shortest waves grow every substep.
+    """
+    lattice = rest_lattice(rest_distance, h)
+    r = np.sqrt(np.einsum("ij,ij->i", lattice, lattice))
+    keep = r > 0.0
+    offsets, r = lattice[keep], r[keep]
+    grad = offsets / r[:, None] * ((h - r) ** 2)[:, None]
+    k = (np.arange(samples + 1) / samples) * (math.pi / rest_distance)
+    waves = np.stack(np.meshgrid(k, k, k, indexing="ij"), axis=-1).reshape(-1, 3)
+    b = np.sin(waves @ offsets.T) @ grad
+    return float(np.einsum("ij,ij->i", b, b).max() / np.einsum("ij,ij->", grad, grad))
+
+
+def stable_pass_bound(fewest: int, most: int) -> float:
+    """Largest ``relaxation x eigenvalue`` for which any substep of ``fewest`` to ``most`` Jacobi passes is stable.
+
+    After ``k`` passes a mode of eigenvalue ``mu`` keeps ``p = (1 - w mu)^k`` of its error, and the
+    substep turns the correction into velocity: ``x' = p (x + v dt)``, ``v' = (x' - x) / dt``, whose
+    eigenvalues solve ``z^2 - 2 p z + p = 0``. They stay inside the unit circle for ``-1/3 < p < 1``: for an
+    even ``k`` while ``w mu < 2``, for an odd one while ``w mu < 1 + 3^(-1/k)`` (4/3 for one pass). The
+    bound is the least over the counts a substep may run.
+    """
+    odd = fewest if fewest % 2 else fewest + 1
+    return 1.0 + 3.0 ** (-1.0 / odd) if odd <= most else 2.0
+
+
+def stable_relaxation(rest_distance: float, h: float, fewest: int = 2, most: int = 2) -> float:
+    """Default ``fluid_relaxation``: a step that keeps every mode of the rest lattice stable, at most 1.
+
+    ``JACOBI_STEP_MARGIN`` of :func:`stable_pass_bound` over :func:`jacobi_spectral_radius`: 0.72 at
+    h = 1.8 d for two passes a substep, 0.48 for one. A disordered neighbourhood's spectral radius is
+    close to the lattice's (2.45 measured in a settled column against 2.43), within the margin.
+    """
+    bound = stable_pass_bound(fewest, most)
+    return min(1.0, JACOBI_STEP_MARGIN * bound / jacobi_spectral_radius(rest_distance, h))
 
 
 def poly6_np(r2: np.ndarray, h: float) -> np.ndarray:
@@ -261,7 +316,7 @@ class FluidSolver:
         fluid_particle: Indices of the fluid particles (host array).
     """
 
-    def __init__(self, model, config: FluidConfig, fluid_particle: np.ndarray):
+    def __init__(self, model, config: FluidConfig, fluid_particle: np.ndarray, iterations: int = 2):
         self.model = model
         self.config = config
         self.device = model.device
@@ -279,6 +334,16 @@ class FluidSolver:
         r = np.sqrt(r2[r2 > 0.0])
         grad = 45.0 / (math.pi * h**6) * (h - r) ** 2 * (self.mean_mass / self.lattice_density)
         self.rest_grad_sq = float((grad * grad).sum())
+        # the density passes a substep may run: one per iteration, or with a tolerance any count from
+        # one (the XPBD iterations stop) or ``iterations`` (sub-passes) up to the most allowed
+        if config.fluid_max_iterations > 1:
+            fewest, most = iterations, iterations * config.fluid_max_iterations
+        elif config.fluid_density_tolerance > 0.0:
+            fewest, most = 1, iterations
+        else:
+            fewest, most = iterations, iterations
+        #: the relaxation in use while ``fluid_relaxation`` is None (see :func:`stable_relaxation`)
+        self.default_relaxation = stable_relaxation(d, h, fewest, most)
 
         if config.fluid_max_neighbors > 0:
             capacity, capped = config.fluid_max_neighbors, True
@@ -440,7 +505,7 @@ class FluidSolver:
         # the gradients scale with m/rho0, so does their rest norm
         scale = self.lattice_density / self.rest_density
         p.epsilon = EPSILON_RELATIVE * self.rest_grad_sq * scale * scale
-        p.relaxation = c.fluid_relaxation
+        p.relaxation = self.default_relaxation if c.fluid_relaxation is None else c.fluid_relaxation
         p.density_ramp = c.fluid_density_ramp
         p.max_correction = MAX_CORRECTION_FRACTION * d
         p.max_displacement = min(c.fluid_max_displacement * d, MAX_DISPLACEMENT_OFF)
@@ -450,6 +515,8 @@ class FluidSolver:
         p.cohesion_out = (1.0 - AKINCI_ZERO) / (h - d)
         p.cohesion_gate = COHESION_GATE
         p.viscosity = c.fluid_viscosity
+        p.nonaffine_damping = c.fluid_nonaffine_damping
+        p.affine_regularizer = AFFINE_REGULARIZER * d * d
         p.vorticity = c.fluid_vorticity
         p.density_tolerance = c.fluid_density_tolerance
         p.warm_start = c.fluid_warm_start
@@ -791,7 +858,7 @@ class FluidSolver:
             self._velocity_pass(state_out)
             self._vorticity_pass(state_out, dt)
         else:
-            if c.fluid_viscosity > 0.0 or c.fluid_vorticity > 0.0:
+            if c.fluid_viscosity > 0.0 or c.fluid_nonaffine_damping > 0.0 or c.fluid_vorticity > 0.0:
                 self._velocity_pass(state_out)
             if c.fluid_vorticity > 0.0:
                 self._vorticity_pass(state_out, dt)

@@ -1,0 +1,196 @@
+# SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
+# SPDX-License-Identifier: Apache-2.0
+
+"""Still water: the Jacobi step bound of the density solve and the non-affine velocity damping (CPU and CUDA)."""
+
+import math
+import unittest
+
+import numpy as np
+import warp as wp
+from newton.tests.unittest_utils import add_function_test, get_test_devices
+
+import newton
+from newton._src.solvers.xpbd.fluid.kernels import apply_fluid_viscosity
+from newton._src.solvers.xpbd.fluid.solver_fluid import (
+    DEFAULT_NONAFFINE_DAMPING,
+    jacobi_spectral_radius,
+    stable_pass_bound,
+    stable_relaxation,
+)
+from newton.tests.test_solver_xpbd_fluid import D, Sim, add_block, make_model
+
+
+def periodic_jacobi_radius(rest_distance: float, h: float, cells: int) -> float:
+    """Largest eigenvalue of ``D^-1 J J^T`` of the density constraint on a periodic cubic lattice, by brute force."""
+    r = np.arange(cells) * rest_distance
+    x = np.stack(np.meshgrid(r, r, r, indexing="ij"), axis=-1).reshape(-1, 3)
+    n, size = len(x), cells * rest_distance
+    offset = x[None, :, :] - x[:, None, :]
+    offset -= size * np.round(offset / size)
+    dist = np.linalg.norm(offset, axis=-1)
+    near = (dist > 0.0) & (dist < h)
+    # gradient of C_i with respect to x_j (j != i), up to the common factor of the spiky kernel
+    grad = np.where(near[..., None], offset / np.where(near, dist, 1.0)[..., None] * ((h - dist) ** 2)[..., None], 0.0)
+    jac = grad.copy()
+    jac[np.arange(n), np.arange(n)] = -grad.sum(axis=1)
+    jac = jac.reshape(n, 3 * n)
+    diagonal = np.einsum("ij,ij->i", jac, jac)
+    return float(np.linalg.eigvalsh(jac @ jac.T / diagonal[0]).max())
+
+
+def test_jacobi_radius_matches_brute_force(test, device):
+    # a periodic lattice of 2S cells has exactly the wave vectors the S-sample Fourier scan visits
+    for ratio in (1.5, 1.8, 2.2):
+        h = ratio * D
+        test.assertAlmostEqual(jacobi_spectral_radius(D, h, samples=4), periodic_jacobi_radius(D, h, 8), places=6)
+    # at the default kernel a plain Jacobi pass (relaxation 1) overshoots the lattice's shortest waves
+    test.assertGreater(jacobi_spectral_radius(D, 1.8 * D), 2.0)
+    test.assertAlmostEqual(stable_relaxation(D, 1.8 * D), 0.72, places=2)
+    solver = Sim(make_model(device, lambda b: add_block(b, (3, 3, 3)))).solver
+    test.assertAlmostEqual(solver.fluid_relaxation, stable_relaxation(D, 1.8 * D))
+    test.assertEqual(solver.fluid_nonaffine_damping, DEFAULT_NONAFFINE_DAMPING)
+    solver.fluid_relaxation = 1.0
+    test.assertEqual(solver.fluid_relaxation, 1.0)
+    solver.fluid_relaxation = None
+    test.assertAlmostEqual(solver.fluid_relaxation, stable_relaxation(D, 1.8 * D))
+
+
+def test_stable_step_follows_the_pass_count(test, device):
+    # a mode keeps (1 - w mu)^n of its error after n passes, stable for -1/3 < (1 - w mu)^n < 1
+    test.assertEqual(stable_pass_bound(2, 2), 2.0)
+    test.assertEqual(stable_pass_bound(4, 4), 2.0)
+    test.assertAlmostEqual(stable_pass_bound(1, 1), 4.0 / 3.0)
+    test.assertAlmostEqual(stable_pass_bound(3, 3), 1.0 + 3.0 ** (-1.0 / 3.0))
+    # a substep that may run any count in a range takes the least bound: its fewest odd count
+    test.assertAlmostEqual(stable_pass_bound(1, 2), 4.0 / 3.0)
+    test.assertAlmostEqual(stable_pass_bound(2, 8), 1.0 + 3.0 ** (-1.0 / 3.0))
+    # the bound puts (1 - w mu)^n at -1/3 for an odd n
+    for n in (1, 3, 5):
+        test.assertAlmostEqual((1.0 - stable_pass_bound(n, n)) ** n, -1.0 / 3.0)
+    radius = jacobi_spectral_radius(D, 1.8 * D)
+
+    def relaxation(**kwargs):
+        return Sim(make_model(device, lambda b: add_block(b, (3, 3, 3))), **kwargs).solver.fluid_relaxation
+
+    test.assertAlmostEqual(relaxation(iterations=1), 0.875 * (4.0 / 3.0) / radius, places=5)
+    test.assertAlmostEqual(relaxation(iterations=3), 0.875 * stable_pass_bound(3, 3) / radius, places=5)
+    test.assertAlmostEqual(relaxation(iterations=4), 0.875 * 2.0 / radius, places=5)
+    # a tolerance on the XPBD iterations may stop after one pass; sub-passes after ``iterations``
+    test.assertAlmostEqual(relaxation(iterations=2, fluid_density_tolerance=0.01), relaxation(iterations=1))
+    test.assertAlmostEqual(relaxation(iterations=2, fluid_max_iterations=4), relaxation(iterations=3))
+
+
+def velocity_pass(device, velocity, damping, viscosity=0.0):
+    """One velocity pass of an 8 x 8 x 8 block (jittered) whose particles move with ``velocity(x)``; returns (x, v before, v after)."""
+    model = make_model(device, lambda b: add_block(b, (8, 8, 8), jitter=0.2 * D))
+    sim = Sim(model, fluid_nonaffine_damping=damping, fluid_viscosity=viscosity)
+    fluid = sim.solver._fluid
+    q = sim.q()
+    v = velocity(q)
+    sim.state_0.particle_qd.assign(v.astype(np.float32))
+    fluid.build_neighborhood(sim.state_0.particle_q)
+    fluid._evaluate_constraint(fluid._always_active)
+    slot_particle = fluid.search.slots.particle.numpy()
+    sorted_v = np.zeros((fluid.fluid_count, 3), dtype=np.float32)
+    sorted_v[slot_particle >= 0] = v[slot_particle[slot_particle >= 0]]
+    fluid.sorted_v.assign(sorted_v)
+    wp.launch(
+        apply_fluid_viscosity,
+        dim=fluid.fluid_count,
+        inputs=[fluid.params, fluid.search.slots, fluid.sorted_v, fluid.density],
+        outputs=[sim.state_0.particle_qd, fluid.vorticity],
+        device=device,
+    )
+    return q, v, sim.qd()
+
+
+def test_nonaffine_damping_keeps_affine_motion(test, device):
+    rng = np.random.default_rng(3)
+    # translation, rotation, shear and expansion at once
+    grad = rng.normal(0.0, 1.0, size=(3, 3))
+    v0 = rng.normal(0.0, 1.0, size=3)
+    q, v, after = velocity_pass(device, lambda x: v0 + (x - x.mean(axis=0)) @ grad.T, 1.0)
+    # the fit reproduces the field up to its regulariser (a per mille of the gradient's part)
+    test.assertLess(np.abs(after - v).max(), 2.0e-3 * np.abs(v).max())
+    # Shepard viscosity of the same strength does not: it pulls the edges toward their inner neighbours
+    _, _, blended = velocity_pass(device, lambda x: v0 + (x - x.mean(axis=0)) @ grad.T, 0.0, viscosity=1.0)
+    test.assertGreater(np.abs(blended - v).max(), 20.0 * np.abs(after - v).max())
+
+
+def test_nonaffine_damping_removes_particle_noise(test, device):
+    rng = np.random.default_rng(4)
+    grad = rng.normal(0.0, 1.0, size=(3, 3))
+    noise = rng.normal(0.0, 0.1, size=(512, 3))
+
+    def field(x):
+        return (x - x.mean(axis=0)) @ grad.T + noise
+
+    q, v, after = velocity_pass(device, field, 0.5)
+    smooth = (q - q.mean(axis=0)) @ grad.T
+    # the particles whose whole kernel lies in the block (the surface's fit sees half a neighbourhood)
+    inner = np.all(np.abs(q - q.mean(axis=0)) < 4.0 * D - 1.8 * D, axis=1)
+    test.assertGreater(np.count_nonzero(inner), 20)
+    before = np.linalg.norm(v - smooth, axis=1)[inner].mean()
+    left = np.linalg.norm(after - smooth, axis=1)[inner].mean()
+    # half the deviation from the affine field goes, give or take the noise the fit itself takes in
+    test.assertLess(left, 0.75 * before)
+    test.assertGreater(left, 0.4 * before)
+    # without the damping the pass leaves the velocities as they are
+    _, v_off, after_off = velocity_pass(device, field, 0.0)
+    np.testing.assert_array_equal(after_off, v_off.astype(np.float32))
+
+
+def still_column(device, frames, **solver_kwargs):
+    """A 6 x 6 x 12 column (spacing 0.05 m) at rest in a closed frictionless box, 8 x 2 at 60 Hz; RMS speed per frame."""
+    n, layers, d = 6, 12, 0.05
+    edge, height, t = n * d, 1.5 * layers * d, 0.1
+
+    def build(b):
+        add_block(b, (n, n, layers), origin=(0.5 * d, 0.5 * d, 0.5 * d), spacing=d, mass=1000.0 * d**3, radius=0.5 * d)
+        cfg = newton.ModelBuilder.ShapeConfig(mu=0.0)
+        half, mid = 0.5 * edge, 0.5 * height
+        for center, extent in (
+            ((half, half, -t), (half + 2 * t, half + 2 * t, t)),
+            ((half, half, height + t), (half + 2 * t, half + 2 * t, t)),
+            ((-t, half, mid), (t, half + 2 * t, mid + 2 * t)),
+            ((edge + t, half, mid), (t, half + 2 * t, mid + 2 * t)),
+            ((half, -t, mid), (half + 2 * t, t, mid + 2 * t)),
+            ((half, edge + t, mid), (half + 2 * t, t, mid + 2 * t)),
+        ):
+            xform = wp.transform(wp.vec3(*center), wp.quat_identity())
+            b.add_shape_box(-1, xform=xform, hx=extent[0], hy=extent[1], hz=extent[2], cfg=cfg)
+
+    model = make_model(device, build, gravity=-9.81)
+    model.soft_contact_mu = 0.0
+    sim = Sim(model, substeps=8, contacts=True, fluid_rest_distance=d, **solver_kwargs)
+    rms = []
+    for _ in range(frames):
+        sim.step()
+        speed = np.linalg.norm(sim.qd(), axis=1)
+        rms.append(math.sqrt(float(np.mean(speed * speed))))
+    test_q = sim.q()
+    return np.asarray(rms), test_q
+
+
+def test_still_column_comes_to_rest(test, device):
+    rms, q = still_column(device, 180)
+    test.assertTrue(np.isfinite(q).all())
+    # after 2 s of settling: below a quarter of g times the substep (issue #23's bound for RMS speed)
+    test.assertLess(rms[120:].mean(), 0.005)
+    # without the step bound and the damping (the solver before them) the same column churns
+    churn, _ = still_column(device, 180, fluid_relaxation=1.0, fluid_nonaffine_damping=0.0)
+    test.assertGreater(churn[120:].mean(), 10.0 * rms[120:].mean())
+
+
+class TestFluidStillWater(unittest.TestCase):
+    pass
+
+
+devices = get_test_devices()
+for _name, _func in list(globals().items()):
+    if _name.startswith("test_") and callable(_func):
+        add_function_test(TestFluidStillWater, _name, _func, devices=devices)
+
+if __name__ == "__main__":
+    unittest.main(verbosity=2)
