@@ -29,6 +29,7 @@ from run_record import machine_record
 
 import newton
 from newton._src.solvers.xpbd.fluid.solver_fluid import DEFAULT_NONAFFINE_DAMPING
+from newton.examples.fluid.common import add_closed_box
 from newton.examples.fluid.progress import track
 
 SPACING = 0.05  # [m]
@@ -54,20 +55,7 @@ def build(n: int, layers: int, device):
         radius_mean=0.5 * d,
         flags=int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID),
     )
-    edge, height, t = n * d, 1.5 * layers * d, 0.1
-    cfg = newton.ModelBuilder.ShapeConfig(mu=0.0)
-    # each wall reaches over the ones it meets, so no joint opens between them
-    half, mid = 0.5 * edge, 0.5 * height
-    for center, extent in (
-        ((half, half, -t), (half + 2 * t, half + 2 * t, t)),
-        ((half, half, height + t), (half + 2 * t, half + 2 * t, t)),
-        ((-t, half, mid), (t, half + 2 * t, mid + 2 * t)),
-        ((edge + t, half, mid), (t, half + 2 * t, mid + 2 * t)),
-        ((half, -t, mid), (half + 2 * t, t, mid + 2 * t)),
-        ((half, edge + t, mid), (half + 2 * t, t, mid + 2 * t)),
-    ):
-        xform = wp.transform(wp.vec3(*center), wp.quat_identity())
-        builder.add_shape_box(-1, xform=xform, hx=extent[0], hy=extent[1], hz=extent[2], cfg=cfg)
+    add_closed_box(builder, n * d, 1.5 * layers * d)
     model = builder.finalize(device=device)
     model.soft_contact_mu = 0.0
     return model

@@ -10,7 +10,6 @@ import numpy as np
 import warp as wp
 from newton.tests.unittest_utils import add_function_test, get_test_devices
 
-import newton
 from newton._src.solvers.xpbd.fluid.kernels import apply_fluid_viscosity
 from newton._src.solvers.xpbd.fluid.solver_fluid import (
     DEFAULT_NONAFFINE_DAMPING,
@@ -18,6 +17,7 @@ from newton._src.solvers.xpbd.fluid.solver_fluid import (
     stable_pass_bound,
     stable_relaxation,
 )
+from newton.examples.fluid.common import add_closed_box
 from newton.tests.test_solver_xpbd_fluid import D, Sim, add_block, make_model
 
 
@@ -144,22 +144,10 @@ def test_nonaffine_damping_removes_particle_noise(test, device):
 def still_column(device, frames, **solver_kwargs):
     """A 6 x 6 x 12 column (spacing 0.05 m) at rest in a closed frictionless box, 8 x 2 at 60 Hz; RMS speed per frame."""
     n, layers, d = 6, 12, 0.05
-    edge, height, t = n * d, 1.5 * layers * d, 0.1
 
     def build(b):
         add_block(b, (n, n, layers), origin=(0.5 * d, 0.5 * d, 0.5 * d), spacing=d, mass=1000.0 * d**3, radius=0.5 * d)
-        cfg = newton.ModelBuilder.ShapeConfig(mu=0.0)
-        half, mid = 0.5 * edge, 0.5 * height
-        for center, extent in (
-            ((half, half, -t), (half + 2 * t, half + 2 * t, t)),
-            ((half, half, height + t), (half + 2 * t, half + 2 * t, t)),
-            ((-t, half, mid), (t, half + 2 * t, mid + 2 * t)),
-            ((edge + t, half, mid), (t, half + 2 * t, mid + 2 * t)),
-            ((half, -t, mid), (half + 2 * t, t, mid + 2 * t)),
-            ((half, edge + t, mid), (half + 2 * t, t, mid + 2 * t)),
-        ):
-            xform = wp.transform(wp.vec3(*center), wp.quat_identity())
-            b.add_shape_box(-1, xform=xform, hx=extent[0], hy=extent[1], hz=extent[2], cfg=cfg)
+        add_closed_box(b, n * d, 1.5 * layers * d)
 
     model = make_model(device, build, gravity=-9.81)
     model.soft_contact_mu = 0.0

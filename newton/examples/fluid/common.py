@@ -15,6 +15,26 @@ from newton.examples.fluid.capture import add_capture_arguments
 WATER = {"color": (0.2, 0.45, 0.9, 0.3), "absorption": (4.0, 1.2, 0.5)}
 
 
+def add_closed_box(builder: newton.ModelBuilder, edge: float, height: float, thickness: float = 0.1) -> None:
+    """Six frictionless walls closing ``[0, edge] x [0, edge] x [0, height]`` [m] (floor and lid included).
+
+    Each wall reaches over the ones it meets to their outer faces, so no joint opens between them
+    (see :func:`add_tank`). The still-water column of ``benchmarks/rest_column.py`` stands in it.
+    """
+    t, half, mid = thickness, 0.5 * edge, 0.5 * height
+    cfg = newton.ModelBuilder.ShapeConfig(mu=0.0)
+    for center, extent in (
+        ((half, half, -t), (half + 2 * t, half + 2 * t, t)),
+        ((half, half, height + t), (half + 2 * t, half + 2 * t, t)),
+        ((-t, half, mid), (t, half + 2 * t, mid + 2 * t)),
+        ((edge + t, half, mid), (t, half + 2 * t, mid + 2 * t)),
+        ((half, -t, mid), (half + 2 * t, t, mid + 2 * t)),
+        ((half, edge + t, mid), (half + 2 * t, t, mid + 2 * t)),
+    ):
+        xform = wp.transform(wp.vec3(*center), wp.quat_identity())
+        builder.add_shape_box(-1, xform=xform, hx=extent[0], hy=extent[1], hz=extent[2], cfg=cfg)
+
+
 def add_tank(
     builder: newton.ModelBuilder,
     half_x: float,
