@@ -225,6 +225,7 @@ class Example(FluidTask):
     sim_substeps = 10
     action_dim = 7
     observation_dim = 14
+    episode_seconds = EPISODE_SECONDS
     default_particle_count = 20_000
     particle_count_help = "Fluid particles per world"
 
@@ -301,9 +302,6 @@ class Example(FluidTask):
             self.lower = wp.array(JOINT_LOWER, dtype=float)
             self.upper = wp.array(JOINT_UPPER, dtype=float)
             self.previous = wp.zeros(self.world_count, dtype=float)
-            #: per world: episodes that ended at the goal with the water, and others
-            self.episodes = wp.zeros((self.world_count, 2), dtype=wp.int32)
-        self.max_episode_steps = round(EPISODE_SECONDS * self.fps)
         self.max_spilled = 0.0  # the largest spilled share of any world at a sampled frame
         self.setup_task()
         gap = 2.0
@@ -346,6 +344,7 @@ class Example(FluidTask):
     def observe(self, first: bool, mask: wp.array | None = None) -> None:
         self.sensor.update(self.state_0)
         s = self.sensor
+        tail, outputs = self.observation_args(first, mask)
         wp.launch(
             observe_carry,
             dim=self.world_count,
@@ -362,19 +361,9 @@ class Example(FluidTask):
                 s.spilled_count,
                 s.fluid_count,
                 self.frame_dt,
-                self.max_episode_steps,
-                int(first),
-                self._everything if mask is None else mask,
+                *tail,
             ],
-            outputs=[
-                self.episode_steps,
-                self.previous,
-                self.episodes,
-                self.observations,
-                self.rewards,
-                self.terminated,
-                self.truncated,
-            ],
+            outputs=outputs,
         )
 
     # --- drawing and checking -------------------------------------------------------------------

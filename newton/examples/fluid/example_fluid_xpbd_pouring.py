@@ -200,6 +200,7 @@ def observe_pour(
 class Example(FluidTask):
     action_dim = 3
     observation_dim = 10
+    episode_seconds = EPISODE_SECONDS
     particle_count_help = "Fluid particles per world"
     default_particle_count = 1000
     cpu_particle_count = 500
@@ -267,9 +268,6 @@ class Example(FluidTask):
             self.pose = wp.array([START] * self.world_count, dtype=wp.vec3)
             self.waypoints = wp.array(np.array(WAYPOINTS, dtype=np.float32), dtype=float)
             self.previous = wp.zeros((self.world_count, 2), dtype=float)
-            #: per world: episodes ended in success (>= SUCCESS in the tank, <= 5 % spilled), and others
-            self.episodes = wp.zeros((self.world_count, 2), dtype=wp.int32)
-        self.max_episode_steps = round(EPISODE_SECONDS * self.fps)
         self.setup_task()
         gap = 2 * TANK_HALF + 0.25
         self.viewer.set_world_offsets((gap, gap, 0.0))
@@ -317,6 +315,7 @@ class Example(FluidTask):
     def observe(self, first: bool, mask: wp.array | None = None) -> None:
         self.sensor.update(self.state_0)
         s = self.sensor
+        tail, outputs = self.observation_args(first, mask)
         wp.launch(
             observe_pour,
             dim=self.world_count,
@@ -329,19 +328,9 @@ class Example(FluidTask):
                 self.frame_dt,
                 SUCCESS,
                 FAILURE,
-                self.max_episode_steps,
-                int(first),
-                self._everything if mask is None else mask,
+                *tail,
             ],
-            outputs=[
-                self.episode_steps,
-                self.previous,
-                self.episodes,
-                self.observations,
-                self.rewards,
-                self.terminated,
-                self.truncated,
-            ],
+            outputs=outputs,
         )
 
     # --- drawing and checking -------------------------------------------------------------------

@@ -20,9 +20,11 @@ episode begins its next one at the next step, from the same start every time; th
 scripted actions (unless :meth:`set_actions` took over), simulates, and measures. All of it is
 device work, captured as one CUDA graph. :meth:`reset` restarts worlds at once, outside the step.
 
-A subclass builds the scene, sets ``action_dim`` and ``observation_dim``, calls :meth:`setup_task`
-after creating its solver, and implements :meth:`restart_worlds`, :meth:`scripted_actions`,
-``prescribe`` and :meth:`observe`.
+A subclass builds the scene, sets ``action_dim``, ``observation_dim`` and ``episode_seconds``,
+allocates ``previous`` (per world, what its reward compares with), calls :meth:`setup_task` after
+creating its solver, and implements :meth:`restart_worlds`, :meth:`scripted_actions`, ``prescribe``
+and :meth:`observe`, whose kernel ends with :func:`begin_observation` / :func:`end_observation` and
+takes :meth:`observation_args`.
 """
 
 from __future__ import annotations
@@ -94,11 +96,16 @@ class FluidTask(FluidExample):
 
     action_dim = 0
     observation_dim = 0
+    #: an episode's time limit [s] (``truncated`` after it)
+    episode_seconds = 0.0
 
     def setup_task(self) -> None:
         """Allocate the task's arrays, set up the simulation (capturing the step) and observe the start."""
         w = self.world_count
+        self.max_episode_steps = round(self.episode_seconds * self.fps)
         with wp.ScopedDevice(self.model.device):
+            #: per world: episodes that ended in success, and others (``end_observation`` counts them)
+            self.episodes = wp.zeros((w, 2), dtype=wp.int32)
             self.actions = wp.zeros((w, self.action_dim), dtype=float)
             self.observations = wp.zeros((w, self.observation_dim), dtype=float)
             self.rewards = wp.zeros(w, dtype=float)
@@ -125,6 +132,20 @@ class FluidTask(FluidExample):
         """Measure the worlds after a step into the task's arrays; with ``first``, the worlds ``mask``
         selects have just been restarted and took no step (no reward, no end), the others are left as they are."""
         raise NotImplementedError
+
+    def observation_args(self, first: bool, mask: wp.array | None) -> tuple[list, list]:
+        """The inputs an observation kernel ends with (step limit, ``first``, its mask) and its outputs."""
+        inputs = [self.max_episode_steps, int(first), self._everything if mask is None else mask]
+        outputs = [
+            self.episode_steps,
+            self.previous,
+            self.episodes,
+            self.observations,
+            self.rewards,
+            self.terminated,
+            self.truncated,
+        ]
+        return inputs, outputs
 
     # --- the environment -------------------------------------------------------------------------
 
