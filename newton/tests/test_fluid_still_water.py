@@ -157,8 +157,7 @@ def still_column(device, frames, **solver_kwargs):
         sim.step()
         speed = np.linalg.norm(sim.qd(), axis=1)
         rms.append(math.sqrt(float(np.mean(speed * speed))))
-    test_q = sim.q()
-    return np.asarray(rms), test_q
+    return np.asarray(rms), sim.q()
 
 
 def test_still_column_comes_to_rest(test, device):

@@ -314,9 +314,11 @@ class FluidSolver:
         model: The model; its particles flagged :attr:`~newton.ParticleFlags.FLUID` are the fluid.
         config: Validated parameters; ``fluid_rest_distance`` must be set.
         fluid_particle: Indices of the fluid particles (host array).
+        iterations: XPBD iterations of the solver's substep (one density pass each, or more), >= 1; sets
+            the default relaxation (:func:`stable_relaxation`).
     """
 
-    def __init__(self, model, config: FluidConfig, fluid_particle: np.ndarray, iterations: int = 2):
+    def __init__(self, model, config: FluidConfig, fluid_particle: np.ndarray, iterations: int):
         self.model = model
         self.config = config
         self.device = model.device
