@@ -262,6 +262,7 @@ def run(args) -> dict:
         fluid_density_tolerance=args.density_tolerance,
         fluid_max_iterations=args.density_iterations,
         max_diffuse_particles=args.diffuse,
+        fluid_continuous_collision=args.continuous_collision,
     )
     # contacts reach one diameter from the surface, where the walls' ghost density has vanished
     collision = newton.CollisionPipeline(model, soft_contact_max=model.particle_count, soft_contact_gap=0.5 * spacing)
@@ -325,6 +326,7 @@ def run(args) -> dict:
 
     # the first frame, the warm-up, the kernel timer's frame and the trials (a graph capture records a
     # frame without simulating it; the pass timing runs after the density was measured)
+    stats = solver.fluid_diagnostics(states[0])
     frames_simulated = 1 + args.warmup_frames + (1 if breakdown else 0) + args.trials * args.frames
     density = {k: float(np.mean([e[k] for e in errors])) for k in errors[0]}
     for key in ("max_compression", "max_compression_walls"):
@@ -343,12 +345,13 @@ def run(args) -> dict:
         "fluid_density_ramp": args.density_ramp,
         "fluid_max_iterations": args.density_iterations,
         "fluid_density_tolerance": args.density_tolerance,
-        "density_subiterations_per_substep": solver.fluid_diagnostics(states[0])["density_subiterations"]
-        / max(1, frames_simulated * args.substeps),
+        "density_subiterations_per_substep": stats["density_subiterations"] / max(1, frames_simulated * args.substeps),
         "viscosity": args.viscosity,
         "max_diffuse_particles": args.diffuse,
         "diffuse_emitted": int(solver.diffuse_emitted_count.numpy()[0]) if args.diffuse else 0,
         "speed_clamp_radii_per_substep": args.speed_clamp,
+        "fluid_continuous_collision": args.continuous_collision,
+        "shape_entries_stopped": stats["shape_entries_stopped"],
         "cuda_graph": graph is not None,
         "scan_lanes": getattr(solver._fluid.search, "lanes", 1),
         "concurrent_passes": solver._fluid._side_stream is not None,
@@ -379,6 +382,12 @@ def main(argv=None):
     parser.add_argument("--density-tolerance", type=float, default=0.0, help="fluid_density_tolerance")
     parser.add_argument("--viscosity", type=float, default=0.05)
     parser.add_argument("--diffuse", type=int, default=0, help="max_diffuse_particles (0: off)")
+    parser.add_argument(
+        "--continuous-collision",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="fluid_continuous_collision (paths kept out of the static walls)",
+    )
     parser.add_argument("--speed-clamp", type=float, default=0.5, help="max displacement per substep [radii]; 0: off")
     parser.add_argument(
         "--scan-lanes", type=int, default=0, help="threads per particle of the neighbour scan (0: the solver's choice)"
@@ -411,6 +420,8 @@ def main(argv=None):
         f"{r['device']:<24}{r['particles']:>10}{r['substeps']:>9}{r['iterations']:>6}"
         f"{r['ms_per_frame_median']:>10.3f}{fluid}{'':>14}{walls}"
     )
+    if r["fluid_continuous_collision"]:
+        print(f"continuous collision: {r['shape_entries_stopped']} particle substeps stopped at a wall")
     if r["update_render_particles_ms"] is not None:
         print(f"update_render_particles: {r['update_render_particles_ms']:.3f} ms (graph replay)")
     if r["kernel_ms_per_frame"]:

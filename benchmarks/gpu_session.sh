@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/performance.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|collision|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|surge|diffuse|render|usd|gallery|gltests|tests]...
 set -u
 out=${1:?output folder}; shift
 export PYTHONUNBUFFERED=1
@@ -28,6 +28,13 @@ for what in "$@"; do
         python3 benchmarks/dam_break.py $v --particles 1000000 --warmup-frames 20 --frames 10 --trials 3 \
           --json "$out/dam_break_1m_still${tag}_${gpu}.json" 2>&1 | grep -A1 "^device"
       done ;;
+    collision)
+      # the cost of continuous collision at the 100k dam break (docs/performance.md "Continuous collision")
+      for v in "" "--no-continuous-collision"; do
+        tag=${v//[ -.]/_}; echo "== 100k $v"
+        python3 benchmarks/dam_break.py $v --trials 5 --json "$out/dam_break_100k_collision${tag}_${gpu}.json" 2>&1 | grep -A2 "^device"
+      done
+      python3 -m pytest -q -k cuda newton/tests/test_fluid_continuous_collision.py 2>&1 | tail -5 ;;
     ncu)
       ncu --kernel-name regex:'build_fluid|compute_fluid_density|apply_fluid_density|apply_fluid_visc' \
         --launch-skip 40 --launch-count 4 --section SpeedOfLight --section Occupancy --section LaunchStats \
@@ -131,6 +138,6 @@ for what in "$@"; do
         newton/tests/test_fluid_tasks.py \
         newton/tests/test_fluid_extension.py newton/tests/test_fluid_diffuse.py newton/tests/test_fluid_render_particles.py \
         newton/tests/test_fluid_validation.py newton/tests/test_fluid_picking.py newton/tests/test_fluid_stress.py \
-        newton/tests/test_fluid_still_water.py 2>&1 | tail -25 ;;
+        newton/tests/test_fluid_still_water.py newton/tests/test_fluid_continuous_collision.py 2>&1 | tail -25 ;;
   esac
 done

@@ -72,6 +72,7 @@ def run_one(args, device, substeps: int, iterations: int, speed: float) -> dict:
         fluid_rest_distance=d,
         fluid_viscosity=args.viscosity,
         fluid_max_displacement=args.max_displacement,
+        fluid_continuous_collision=args.continuous_collision,
     )
     pipeline = newton.CollisionPipeline(model, soft_contact_max=2 * model.particle_count, soft_contact_gap=0.5 * d)
     contacts = pipeline.contacts()
@@ -118,6 +119,7 @@ def run_one(args, device, substeps: int, iterations: int, speed: float) -> dict:
         "failed_at_frame": first_bad,
         "nonfinite_recovered": int(stats["nonfinite_recovered"]),
         "fast_particle_substeps": int(stats["fast_particle_substeps"]),
+        "shape_entries_stopped": int(stats["shape_entries_stopped"]),
         "max_wall_penetration_spacings": max_penetration,
         "final_rms_speed_m_s": rms,
         "final_p99_compression": p99,
@@ -196,6 +198,12 @@ def main(argv=None):
     parser.add_argument(
         "--max-displacement", type=float, default=float("inf"), help="fluid_max_displacement [rest distances]"
     )
+    parser.add_argument(
+        "--continuous-collision",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="fluid_continuous_collision (paths kept out of the tank's walls)",
+    )
     parser.add_argument("--substeps", type=int, nargs="+", default=[1, 2, 4, 8, 16, 32])
     parser.add_argument("--iterations", type=int, nargs="+", default=[1, 2, 4, 8])
     parser.add_argument("--speeds", type=float, nargs="+", default=[1.0, 4.0, 16.0, 64.0])
@@ -232,6 +240,7 @@ def main(argv=None):
             "seconds": args.seconds,
             "viscosity": args.viscosity,
             "fluid_max_displacement": args.max_displacement,
+            "fluid_continuous_collision": args.continuous_collision,
             "wall_s": time.perf_counter() - t0,
             "runs": runs,
         }

@@ -1160,8 +1160,11 @@ def test_warm_start_kept_by_the_last_correction(test, device):
     test.assertEqual(lam_fixed[0], 0.0)
     test.assertEqual(lam_tol[0], 0.0)
     test.assertGreater(np.count_nonzero(lam_fixed), 50)  # the compressed block carries multipliers
-    np.testing.assert_allclose(lam_fixed, lam_tol, rtol=1.0e-5, atol=1.0e-9)
-    np.testing.assert_allclose(q_fixed, q_tol, atol=1.0e-6)
+    # (bitwise on the CPU but for the last float bits; on a GPU the sums' order differs between the two runs,
+    # and the packed block amplifies it: H100, multipliers of about 0.01 up to 6e-6 apart, positions 3.3e-4 m)
+    exact = wp.get_device(device).is_cpu
+    np.testing.assert_allclose(lam_fixed, lam_tol, rtol=1.0e-5, atol=1.0e-9 if exact else 2.0e-5)
+    np.testing.assert_allclose(q_fixed, q_tol, atol=1.0e-6 if exact else 1.0e-3)
 
 
 def test_no_fluid_adds_no_work(test, device):

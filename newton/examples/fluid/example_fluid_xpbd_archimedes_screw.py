@@ -193,7 +193,6 @@ class Example(FluidExample):
 
         self.model = builder.finalize()
         self.model.soft_contact_mu = 0.0
-        self.model.particle_max_velocity = 0.25 * d / self.sim_dt
         self.fluid_count = self.model.particle_count
         self.solver = newton.solvers.SolverXPBD(
             self.model, iterations=2, fluid_rest_distance=d, fluid_viscosity=0.02, fluid_cohesion=0.1

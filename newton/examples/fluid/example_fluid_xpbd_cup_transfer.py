@@ -278,8 +278,6 @@ class Example(FluidTask):
         builder.replicate(world, self.world_count)
         self.model = builder.finalize()
         self.model.soft_contact_mu = 0.0
-        # the cup moves up to ~0.4 m/s: particles must be free to follow it
-        self.model.particle_max_velocity = 0.5 * d / self.sim_dt
         self.solver = newton.solvers.SolverXPBD(
             self.model, iterations=2, fluid_rest_distance=d, fluid_viscosity=0.05, fluid_cohesion=0.2
         )

@@ -92,8 +92,6 @@ class Example(FluidExample):
         self.model = builder.finalize()
         self.model.soft_contact_mu = 0.0
         self.spacing = self.scene["spacing"]
-        # a particle moves at most half its radius per substep
-        self.model.particle_max_velocity = 0.25 * self.spacing / self.sim_dt
 
         self.solver = newton.solvers.SolverXPBD(
             self.model,

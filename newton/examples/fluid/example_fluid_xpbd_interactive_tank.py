@@ -64,7 +64,6 @@ class Example(FluidExample):
             builder.add_shape_box(body, hx=BOX_HALF[0], hy=BOX_HALF[1], hz=BOX_HALF[2], cfg=cfg)
         self.model = builder.finalize()
         self.model.soft_contact_mu = 0.0
-        self.model.particle_max_velocity = 0.25 * d / self.sim_dt
         self.solver = newton.solvers.SolverXPBD(
             self.model, iterations=2, fluid_rest_distance=d, fluid_viscosity=0.1, fluid_cohesion=0.2
         )

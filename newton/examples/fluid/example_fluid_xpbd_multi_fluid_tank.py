@@ -84,7 +84,6 @@ class Example(FluidExample):
             builder.add_shape_box(body, hx=BOX_HALF[0], hy=BOX_HALF[1], hz=BOX_HALF[2], cfg=cfg)
         self.model = builder.finalize()
         self.model.soft_contact_mu = 0.0
-        self.model.particle_max_velocity = 0.25 * d / self.sim_dt
         # the layers' heights once settled: each fluid's volume over the tank's floor
         self.layer_tops = np.cumsum([(g.stop - g.start) * d**3 / (4.0 * hx * hy) for g in self.groups[::-1]])[::-1]
         self.solver = newton.solvers.SolverXPBD(

@@ -71,7 +71,6 @@ class Example(FluidExample):
             builder.end_world()
         self.model = builder.finalize()
         self.model.soft_contact_mu = 0.0
-        self.model.particle_max_velocity = 0.25 * d / self.sim_dt
 
         self.solver = newton.solvers.SolverXPBD(
             self.model, iterations=2, fluid_rest_distance=d, fluid_cohesion=0.3, fluid_viscosity=0.02

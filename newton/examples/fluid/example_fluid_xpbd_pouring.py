@@ -256,8 +256,6 @@ class Example(FluidTask):
         cups = [cup + w * world.body_count for w in range(self.world_count)]
         self.model = builder.finalize()
         self.model.soft_contact_mu = 0.0
-        # pouring water falls about 0.1 m (1.4 m/s): let it, at up to one spacing per substep
-        self.model.particle_max_velocity = d / self.sim_dt
         self.solver = newton.solvers.SolverXPBD(
             self.model, iterations=2, fluid_rest_distance=d, fluid_viscosity=0.02, fluid_cohesion=0.2
         )

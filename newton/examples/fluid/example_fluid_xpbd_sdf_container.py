@@ -81,7 +81,6 @@ class Example(FluidExample):
         builder.add_shape_mesh(-1, mesh=back_half(vase), cfg=visual)
         self.model = builder.finalize()
         self.model.soft_contact_mu = 0.0
-        self.model.particle_max_velocity = 0.25 * d / self.sim_dt
         self.rest_level = FILL
         self.highest = 0.0  # highest 99.5th-percentile height seen [m]
         self.solver = newton.solvers.SolverXPBD(

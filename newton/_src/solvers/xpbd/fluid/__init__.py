@@ -146,7 +146,9 @@ def fluid_diagnostics(self, state) -> dict:
         ``fast_particle_substeps`` (particle substeps that ended with a velocity carrying the particle more
         than one rest distance in a substep; a ``RuntimeWarning`` says when it grew since the last call),
         ``soft_contacts_dropped`` (particle-shape contacts the last step's collision found beyond the
-        ``Contacts`` buffer's ``soft_contact_max``, so dropped with the walls they stand for; warns).
+        ``Contacts`` buffer's ``soft_contact_max``, so dropped with the walls they stand for; warns),
+        ``shape_entries_stopped`` (particle substeps whose path continuous collision stopped at a static or
+        kinematic shape, in all).
         Empty for a model without fluid.
     """
     if self._fluid is None:
@@ -273,7 +275,7 @@ def activate(xpbd_module) -> None:
         self._fluid.contacts = contacts
         with _fluid_particle_contacts(solver_module, self.model, self._fluid):
             upstream_step(self, state_in, state_out, control, contacts, dt, **kwargs)
-        self._fluid.finish_step(state_out, dt)
+        self._fluid.finish_step(state_out, dt, getattr(self, "particle_q_init", None))
 
     def _fluid_reset(self, state, world_mask, flags, fluid_source):
         upstream_reset(self, state, world_mask, flags)
@@ -392,9 +394,9 @@ _FLUID_DOC = """
             fluid_max_displacement: Longest travel of a fluid particle in one substep [rest distances], > 0.
                 Defaults to ``inf`` (no limit). Particles that travel more than one rest distance in a
                 substep are counted either way (``fluid_fast_count``; :meth:`fluid_diagnostics` warns):
-                past that they can cross a thin wall before its contact is found. 1 prevents it (in
-                closed containers under violent forcing): each substep's predicted travel is shortened to it
-                (and the velocity by the same factor), at the cost of the fastest particles' speed.
+                past that they can cross a dynamic body's wall before its contact is found. 1 prevents
+                it: each substep's predicted travel is shortened to it (and the velocity by the same
+                factor), at the cost of the fastest particles' speed.
             fluid_warm_start: Share of a substep's summed density multipliers that the next substep starts
                 from, in [0, 1). Defaults to 0 (off, no cost). A load the fluid carried, like the weight of a
                 deep column, is then held before the iterations start: about half the compression at the
@@ -402,6 +404,9 @@ _FLUID_DOC = """
                 it the fluid over-expands). To change it after construction, create the solver with a value > 0.
             max_diffuse_particles: Capacity of the ring buffer of diffuse (spray, foam, bubble) particles, >= 0;
                 0 is off (no cost). See ``diffuse_positions`` and the other ``diffuse_*`` attributes.
+            fluid_continuous_collision: Whether each substep's path of every fluid particle is kept out of
+                the static shapes and the shapes of kinematic bodies that collide with particles, so closed
+                containers stay closed at any speed and substep (bool). Defaults to True; set at construction.
 """
 
 

@@ -23,6 +23,7 @@ import warp as wp
 
 from ....geometry import ParticleFlags
 from ....sim.enums import BodyFlags
+from .continuous_collision import ContinuousCollision
 from .diffuse import (
     DIFFUSE_BLOCK_DIM,
     DIFFUSE_DEAD,
@@ -128,6 +129,7 @@ class FluidConfig:
     fluid_max_displacement: float = math.inf
     fluid_warm_start: float = 0.0
     max_diffuse_particles: int = 0
+    fluid_continuous_collision: bool = True
 
     #: parameters that may change after construction (they live on the device)
     MUTABLE = (
@@ -161,6 +163,10 @@ class FluidConfig:
         self.fluid_max_neighbors = _count("fluid_max_neighbors", self.fluid_max_neighbors, 4096)
         self.fluid_max_iterations = _count("fluid_max_iterations", self.fluid_max_iterations, 64, lo=1)
         self.max_diffuse_particles = _count("max_diffuse_particles", self.max_diffuse_particles, 2**31 - 1)
+        if not isinstance(self.fluid_continuous_collision, bool):
+            raise ValueError(
+                f"fluid_continuous_collision={self.fluid_continuous_collision!r} is invalid: expected True or False"
+            )
 
     def set(self, name: str, value) -> None:
         """Validate and store one mutable parameter."""
@@ -478,6 +484,8 @@ class FluidSolver:
         with wp.ScopedDevice(self.device):
             self._no_bodies = wp.zeros(1, dtype=wp.transform)
             self._no_body_flags = wp.zeros(1, dtype=wp.int32)
+        # the fluid's paths kept out of static and kinematic shapes (None: off, or no such shape)
+        self.continuous_collision = ContinuousCollision.build(model) if config.fluid_continuous_collision else None
         # the second stream (see CONCURRENT_PASSES), and whether work on it has not been joined yet
         self._side_stream = wp.Stream(self.device) if self.device.is_cuda and CONCURRENT_PASSES else None
         self._side_pending = False
@@ -835,8 +843,11 @@ class FluidSolver:
             device=self.device,
         )
 
-    def finish_step(self, state_out, dt: float) -> None:
-        """Viscosity, vorticity confinement and non-finite recovery on the step's result.
+    def finish_step(self, state_out, dt: float, particle_q_start: wp.array | None = None) -> None:
+        """Continuous collision, viscosity, vorticity confinement and non-finite recovery on the step's result.
+
+        With ``particle_q_start`` (the positions the substep started from), each fluid particle's path is
+        first kept out of the static and kinematic shapes (:mod:`.continuous_collision`).
 
         Outside a graph capture the optional passes are not launched while their parameter is 0.
         Inside one they are captured and check the parameter on the device, so that switching them on
@@ -847,6 +858,16 @@ class FluidSolver:
         """
         self._join()
         c = self.config
+        if self.continuous_collision is not None and particle_q_start is not None:
+            self.continuous_collision.apply(
+                self.fluid_particle,
+                self.search.slot_of_particle,
+                self.slots.xm,
+                self.sorted_v,
+                particle_q_start,
+                state_out,
+                dt,
+            )
         if self._warm_start_on() and not self._warm_stored:
             wp.launch(
                 store_fluid_warm_start,
@@ -1051,11 +1072,15 @@ class FluidSolver:
         count = int(self.fast_count.numpy()[0])
         if count > self._fast_reported:
             limit = self.config.fluid_max_displacement
-            action = (
-                f"they were slowed to fluid_max_displacement={limit:g} rest distances per substep"
-                if math.isfinite(limit)
-                else "past that a particle can cross a thin wall (fluid_max_displacement=1 prevents it)"
-            )
+            if math.isfinite(limit):
+                action = f"they were slowed to fluid_max_displacement={limit:g} rest distances per substep"
+            elif self.continuous_collision is not None:
+                action = (
+                    "continuous collision kept them out of static and kinematic shapes; past that a particle "
+                    "can cross a dynamic body before its contact is found (fluid_max_displacement=1 prevents it)"
+                )
+            else:
+                action = "past that a particle can cross a thin wall (fluid_max_displacement=1 prevents it)"
             warnings.warn(
                 f"{count - self._fast_reported} fluid particle substeps since the last report travelled more than "
                 f"one rest distance: the substep is too long for the flow's speed (use more substeps); {action}",
@@ -1168,7 +1193,12 @@ class FluidSolver:
             "fast_particle_substeps": self._report_fast_particles(),
             "density_subiterations": int(self.subiterations_total.numpy()[0]),
             "soft_contacts_dropped": dropped,
+            "shape_entries_stopped": self._stopped_entries(),
         }
+
+    def _stopped_entries(self) -> int:
+        cc = self.continuous_collision
+        return 0 if cc is None else int(cc.stopped_count.numpy()[0])
 
 
 #: mean compression max(rho/rho0 - 1, 0) above which :meth:`FluidSolver.diagnostics` warns that the density

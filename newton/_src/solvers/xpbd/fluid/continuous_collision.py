@@ -1,0 +1,570 @@
+# SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
+# SPDX-License-Identifier: Apache-2.0
+
+"""Continuous collision of fluid particles with static and kinematic shapes.
+
+Upstream's particle-shape contacts are found once per :meth:`~newton.CollisionPipeline.collide`,
+within a small gap of each shape: a particle that travels further than that gap between two
+collisions (20 m/s is a third of a metre per 1/60 s frame) meets no contact and passes through a
+wall. After each substep this pass follows every fluid particle's path, from where the substep
+started to where the solve left it, in the frame of each static or kinematic shape it can reach
+(the shape's pose at the start of the substep for the start, at its end for the end, so a moving
+wall that sweeps over a particle is met too). A kinematic body is where its ``body_q`` puts it at
+the end of the substep and moved there at its ``body_qd`` (as a prescribed body is set before each
+substep); a pose set without the velocity that gets it there is a jump, not a sweep. Where the path enters a shape, the particle is put
+on the entry point's tangent plane at its radius (a contact the collision missed: frictionless and
+inelastic, the motion along the wall kept) and its velocity is recomputed from its move, less
+what still points into the wall. A path pushed off one shape is followed again, so a particle
+thrown into a corner stops at every wall; one still entering a shape after ``GUARD_ROUNDS`` rounds
+stops just before its first entry.
+
+Boxes, spheres, capsules, cylinders, ellipsoids and planes are intersected exactly; triangle
+meshes (and convex hulls) by a ray cast against their BVH. Cones, heightfields and barrel-sided
+cylinders are left to upstream's contacts. Shapes of dynamic bodies are left to them too: they take
+the fluid's reaction, which a hard stop would not give them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from ....geometry import GeoType, ParticleFlags, ShapeFlags
+from ....sim.enums import BodyFlags
+
+# a segment parameter past the end of the path: no entry
+NO_ENTRY = wp.constant(2.0)
+# rounds of following a path pushed off a shape; the last one stops the particle before its entry
+# (passed as a kernel argument: Warp unrolls a loop over a constant count, which would copy the shape
+# tests four times into the kernel)
+GUARD_ROUNDS = 4
+# the stop before an entry, as a share of the path (keeps the stopped centre outside under rounding)
+STOP_SHORT = wp.constant(1.0e-4)
+# shape types this pass intersects
+GUARDED_TYPES = (
+    GeoType.PLANE,
+    GeoType.SPHERE,
+    GeoType.BOX,
+    GeoType.CAPSULE,
+    GeoType.CYLINDER,
+    GeoType.ELLIPSOID,
+    GeoType.MESH,
+    GeoType.CONVEX_MESH,
+)
+
+
+@wp.struct
+class GuardedShapes:
+    """The static and kinematic shapes each world's fluid can reach, with what their intersection needs."""
+
+    row_start: wp.array[wp.int32]  # shapes of world w: shape[row_start[w]:row_start[w + 1]]; row world_count: all
+    shape: wp.array[wp.int32]
+    world_count: int
+    shape_type: wp.array[wp.int32]
+    shape_scale: wp.array[wp.vec3]
+    shape_source: wp.array[wp.uint64]
+    shape_transform: wp.array[wp.transform]
+    shape_body: wp.array[wp.int32]
+    body_q: wp.array[wp.transform]  # body poses at the end of the substep
+    body_qd: wp.array[wp.spatial_vector]  # their velocities over it (linear of the centre of mass, angular)
+    body_com: wp.array[wp.vec3]  # centres of mass in the bodies' frames [m]
+    dt: float  # substep [s]
+    local_lower: wp.array[wp.vec3]  # bounds of each shape in its own frame [m] (x below -1e29: unbounded)
+    local_upper: wp.array[wp.vec3]
+    lower: wp.array[wp.vec3]  # world bounds of each guarded shape over the substep [m]
+    upper: wp.array[wp.vec3]
+
+
+@wp.func
+def _entry(t: float, n: wp.vec3):
+    return wp.vec4(n[0], n[1], n[2], t)
+
+
+@wp.func
+def _no_entry():
+    return wp.vec4(0.0, 0.0, 1.0, NO_ENTRY)
+
+
+@wp.func
+def _box_interval(a: wp.vec3, d: wp.vec3, lo: wp.vec3, hi: wp.vec3):
+    """Parameters where ``a + t d`` enters and leaves the box ``[lo, hi]`` (enter > leave: it misses), and the entry face's normal."""
+    t_in = float(-1.0e30)
+    t_out = float(1.0e30)
+    n = wp.vec3(0.0)
+    for k in range(3):
+        if wp.abs(d[k]) < 1.0e-30:
+            if a[k] < lo[k] or a[k] > hi[k]:
+                t_in = 1.0e30
+        else:
+            t1 = (lo[k] - a[k]) / d[k]
+            t2 = (hi[k] - a[k]) / d[k]
+            near = wp.min(t1, t2)
+            if near > t_in:
+                t_in = near
+                n = wp.vec3(0.0)
+                n[k] = -wp.sign(d[k])
+            t_out = wp.min(t_out, wp.max(t1, t2))
+    return t_in, t_out, n
+
+
+@wp.func
+def _sphere_interval(a: wp.vec3, d: wp.vec3, c: wp.vec3, radius: float):
+    """Parameters where ``a + t d`` enters and leaves the ball of ``radius`` about ``c``, and the entry normal."""
+    f = a - c
+    qa = wp.dot(d, d)
+    qb = wp.dot(f, d)
+    qc = wp.dot(f, f) - radius * radius
+    disc = qb * qb - qa * qc
+    if qa < 1.0e-30 or disc < 0.0:
+        # no motion: inside for all t or never
+        return wp.where(qc <= 0.0, -1.0e30, 1.0e30), wp.where(qc <= 0.0, 1.0e30, -1.0e30), wp.vec3(0.0, 0.0, 1.0)
+    root = wp.sqrt(disc)
+    t_in = (-qb - root) / qa
+    n = (f + t_in * d) / radius
+    return t_in, (-qb + root) / qa, n
+
+
+@wp.func
+def _tube_interval(a: wp.vec3, d: wp.vec3, radius: float):
+    """Parameters where ``a + t d`` enters and leaves the infinite cylinder of ``radius`` about the z axis."""
+    qa = d[0] * d[0] + d[1] * d[1]
+    qb = a[0] * d[0] + a[1] * d[1]
+    qc = a[0] * a[0] + a[1] * a[1] - radius * radius
+    disc = qb * qb - qa * qc
+    if qa < 1.0e-30 or disc < 0.0:
+        return wp.where(qc <= 0.0, -1.0e30, 1.0e30), wp.where(qc <= 0.0, 1.0e30, -1.0e30), wp.vec3(1.0, 0.0, 0.0)
+    root = wp.sqrt(disc)
+    t_in = (-qb - root) / qa
+    p = a + t_in * d
+    return t_in, (-qb + root) / qa, wp.vec3(p[0], p[1], 0.0) / radius
+
+
+@wp.func
+def _convex_entry(t_in: float, t_out: float, n: wp.vec3):
+    """The entry of a path ``t`` in [0, 1] into a convex solid it overlaps for ``t`` in [t_in, t_out]; none from inside."""
+    if t_in > t_out or t_in < 0.0 or t_in > 1.0:
+        return _no_entry()
+    return _entry(t_in, n)
+
+
+@wp.func
+def _cylinder_entry(a: wp.vec3, d: wp.vec3, radius: float, half_height: float):
+    t_in, t_out, n = _tube_interval(a, d, radius)
+    s_in, s_out, s_n = _box_interval(
+        a, d, wp.vec3(-1.0e30, -1.0e30, -half_height), wp.vec3(1.0e30, 1.0e30, half_height)
+    )
+    if s_in > t_in:
+        t_in = s_in
+        n = s_n
+    return _convex_entry(t_in, wp.min(t_out, s_out), n)
+
+
+@wp.func
+def _plane_entry(a: wp.vec3, d: wp.vec3, scale: wp.vec3):
+    """An infinite plane is the half-space z < 0; a finite one (``scale`` its width and length) a sheet met from either side."""
+    b = a + d
+    finite = scale[0] > 0.0 and scale[1] > 0.0
+    if not ((a[2] >= 0.0 and b[2] < 0.0) or (finite and a[2] <= 0.0 and b[2] > 0.0)):
+        return _no_entry()
+    t = a[2] / (a[2] - b[2])
+    p = a + t * d
+    if finite and (wp.abs(p[0]) > 0.5 * scale[0] or wp.abs(p[1]) > 0.5 * scale[1]):
+        return _no_entry()
+    return _entry(t, wp.vec3(0.0, 0.0, wp.sign(a[2] - b[2])))
+
+
+@wp.func
+def _mesh_entry(mesh: wp.uint64, a: wp.vec3, d: wp.vec3, scale: wp.vec3):
+    """The first face the path crosses from its front (outside) side, by a ray cast in the mesh's own frame."""
+    hit = wp.mesh_query_ray(mesh, wp.cw_div(a, scale), wp.cw_div(d, scale), 1.0)
+    if not hit.result:
+        return _no_entry()
+    # normals map with the inverse transpose of the scale
+    n = wp.normalize(wp.cw_div(hit.normal, scale))
+    if wp.dot(n, d) >= 0.0:
+        # it leaves the mesh: it started inside (upstream's contact pushes it out)
+        return _no_entry()
+    return _entry(hit.t, n)
+
+
+@wp.func
+def segment_entry(shape_type: int, scale: wp.vec3, source: wp.uint64, a: wp.vec3, d: wp.vec3):
+    """Where the path ``a + t d``, ``t`` in [0, 1], first enters the shape from outside (``w``; ``NO_ENTRY``: it does
+    not), and the shape's outward unit normal there (``xyz``), in the shape's frame."""
+    if shape_type == GeoType.BOX:
+        t_in, t_out, n = _box_interval(a, d, -scale, scale)
+        return _convex_entry(t_in, t_out, n)
+    if shape_type == GeoType.SPHERE:
+        t_in, t_out, n = _sphere_interval(a, d, wp.vec3(0.0), scale[0])
+        return _convex_entry(t_in, t_out, n)
+    if shape_type == GeoType.ELLIPSOID:
+        # the unit ball in coordinates scaled by the semi-axes (t is the same)
+        t_in, t_out, n = _sphere_interval(wp.cw_div(a, scale), wp.cw_div(d, scale), wp.vec3(0.0), 1.0)
+        if t_in > t_out or t_in < 0.0 or t_in > 1.0:
+            return _no_entry()
+        return _entry(t_in, wp.normalize(wp.cw_div(n, scale)))
+    if shape_type == GeoType.CYLINDER:
+        return _cylinder_entry(a, d, scale[0], scale[1])
+    if shape_type == GeoType.CAPSULE:
+        # a tube and two balls: from outside all three, the union is entered where the first of them is
+        radius = scale[0]
+        axis_z = wp.clamp(a[2], -scale[1], scale[1])
+        if wp.length_sq(a - wp.vec3(0.0, 0.0, axis_z)) <= radius * radius:
+            return _no_entry()
+        best = _cylinder_entry(a, d, radius, scale[1])
+        for side in range(2):
+            c = wp.vec3(0.0, 0.0, wp.where(side == 0, -scale[1], scale[1]))
+            t_in, t_out, n = _sphere_interval(a, d, c, radius)
+            ball = _convex_entry(t_in, t_out, n)
+            if ball[3] < best[3]:
+                best = ball
+        return best
+    if shape_type == GeoType.PLANE:
+        return _plane_entry(a, d, scale)
+    if shape_type == GeoType.MESH or shape_type == GeoType.CONVEX_MESH:
+        return _mesh_entry(source, a, d, scale)
+    return _no_entry()
+
+
+@wp.func
+def shape_poses(shapes: GuardedShapes, s: int):
+    """World poses of shape ``s`` at the start and at the end of the substep (a kinematic body's rewound by its velocity)."""
+    b = shapes.shape_body[s]
+    local = shapes.shape_transform[s]
+    if b < 0:
+        return local, local
+    end = shapes.body_q[b]
+    qd = shapes.body_qd[b]
+    w = wp.spatial_bottom(qd)
+    # the rigid motion at constant velocity, undone about the centre of mass
+    c = wp.transform_point(end, shapes.body_com[b])
+    turn = wp.quat_identity()
+    speed = wp.length(w)
+    if speed > 0.0:
+        turn = wp.quat_from_axis_angle(w / speed, -speed * shapes.dt)
+    p = wp.transform_get_translation(end)
+    c_start = c - wp.spatial_top(qd) * shapes.dt
+    start = wp.transform(c_start + wp.quat_rotate(turn, p - c), turn * wp.transform_get_rotation(end))
+    return start * local, end * local
+
+
+@wp.func
+def pose_bounds(pose: wp.transform, lo: wp.vec3, hi: wp.vec3):
+    """World bounds of the local box ``[lo, hi]`` placed at ``pose``."""
+    center = wp.transform_point(pose, 0.5 * (lo + hi))
+    half = 0.5 * (hi - lo)
+    rot = wp.quat_to_matrix(wp.transform_get_rotation(pose))
+    extent = wp.vec3(0.0)
+    for r in range(3):
+        extent[r] = wp.abs(rot[r, 0]) * half[0] + wp.abs(rot[r, 1]) * half[1] + wp.abs(rot[r, 2]) * half[2]
+    return center - extent, center + extent
+
+
+@wp.kernel
+def bound_guarded_shapes(shapes: GuardedShapes, guarded: wp.array[wp.int32]):
+    """World bounds of each guarded shape over the substep: the union of its bounds at the start and at the end."""
+    s = guarded[wp.tid()]
+    lo = shapes.local_lower[s]
+    hi = shapes.local_upper[s]
+    if lo[0] < -1.0e29:
+        shapes.lower[s] = wp.vec3(-1.0e30)
+        shapes.upper[s] = wp.vec3(1.0e30)
+        return
+    start, end = shape_poses(shapes, s)
+    lo0, hi0 = pose_bounds(start, lo, hi)
+    lo1, hi1 = pose_bounds(end, lo, hi)
+    # (a margin for the rounding of the poses)
+    pad = 1.0e-5 * wp.length(hi - lo) + 1.0e-6
+    shapes.lower[s] = wp.min(lo0, lo1) - wp.vec3(pad)
+    shapes.upper[s] = wp.max(hi0, hi1) + wp.vec3(pad)
+
+
+@wp.func
+def first_shape_entry(shapes: GuardedShapes, lo: int, hi: int, x0: wp.vec3, x1: wp.vec3):
+    """The earliest entry of the path ``x0 -> x1`` into shapes ``lo..hi`` of its row.
+
+    Returns the entry parameter (``NO_ENTRY``: none), the entered shape's world-frame outward normal at
+    the entry, the entry point at the end of the substep and where that point was at its start [m].
+    """
+    best = _no_entry()
+    best_s = int(-1)
+    best_local = wp.vec3(0.0)
+    path_lo = wp.min(x0, x1)
+    path_hi = wp.max(x0, x1)
+    for k in range(lo, hi):
+        s = shapes.shape[k]
+        # most paths are far from most shapes: their bounds part
+        s_lo = shapes.lower[s]
+        s_hi = shapes.upper[s]
+        if (
+            path_hi[0] < s_lo[0]
+            or path_hi[1] < s_lo[1]
+            or path_hi[2] < s_lo[2]
+            or path_lo[0] > s_hi[0]
+            or path_lo[1] > s_hi[1]
+            or path_lo[2] > s_hi[2]
+        ):
+            continue
+        a = wp.vec3(0.0)
+        b = wp.vec3(0.0)
+        if shapes.shape_body[s] < 0:
+            # a static shape: one pose
+            into = wp.transform_inverse(shapes.shape_transform[s])
+            a = wp.transform_point(into, x0)
+            b = wp.transform_point(into, x1)
+        else:
+            start, end = shape_poses(shapes, s)
+            a = wp.transform_point(wp.transform_inverse(start), x0)
+            b = wp.transform_point(wp.transform_inverse(end), x1)
+        e = segment_entry(shapes.shape_type[s], shapes.shape_scale[s], shapes.shape_source[s], a, b - a)
+        if e[3] < best[3]:
+            best = e
+            best_s = s
+            best_local = a + e[3] * (b - a)
+    if best_s < 0:
+        return NO_ENTRY, wp.vec3(0.0), wp.vec3(0.0), wp.vec3(0.0)
+    start, end = shape_poses(shapes, best_s)
+    normal = wp.transform_vector(end, wp.vec3(best[0], best[1], best[2]))
+    return best[3], normal, wp.transform_point(end, best_local), wp.transform_point(start, best_local)
+
+
+@wp.func
+def stop_inward(v: wp.vec3, normal: wp.vec3, v_wall: wp.vec3):
+    """``v`` less its velocity into a wall of outward ``normal`` moving at ``v_wall`` (an inelastic, frictionless hit)."""
+    vn = wp.dot(v - v_wall, normal)
+    if vn < 0.0:
+        return v - vn * normal
+    return v
+
+
+@wp.kernel
+def stop_fluid_paths_at_shapes(
+    shapes: GuardedShapes,
+    fluid_particle: wp.array[wp.int32],
+    slot_of_particle: wp.array[wp.int32],
+    particle_flags: wp.array[wp.int32],
+    particle_world: wp.array[wp.int32],
+    particle_radius: wp.array[float],
+    particle_inv_mass: wp.array[float],
+    particle_q_start: wp.array[wp.vec3],
+    rounds: int,
+    # outputs
+    particle_q: wp.array[wp.vec3],
+    particle_qd: wp.array[wp.vec3],
+    slot_xm: wp.array[wp.vec4],
+    sorted_v: wp.array[wp.vec3],
+    stopped_count: wp.array[wp.int32],
+):
+    """Keep each fluid particle's path of the substep out of the static and kinematic shapes (module docstring).
+
+    In particle order (the state's reads are coalesced). A stopped particle's position and velocity are
+    written to the state and to its slot (``slot_xm``, ``sorted_v``), so the velocity passes after it
+    read them; ``stopped_count`` counts the stops.
+    """
+    pi = fluid_particle[wp.tid()]
+    if (particle_flags[pi] & ParticleFlags.ACTIVE) == 0 or particle_inv_mass[pi] == 0.0:
+        return
+    w = particle_world[pi]
+    row = wp.where(w >= 0 and w < shapes.world_count, w, shapes.world_count)
+    lo = shapes.row_start[row]
+    hi = shapes.row_start[row + 1]
+    if lo == hi:
+        return
+    x0 = particle_q_start[pi]
+    x1 = particle_q[pi]
+    radius = particle_radius[pi]
+    # the walls met (outward normal, and the wall's velocity at the entry point)
+    n0 = wp.vec3(0.0)
+    n1 = wp.vec3(0.0)
+    n2 = wp.vec3(0.0)
+    n3 = wp.vec3(0.0)
+    w0 = wp.vec3(0.0)
+    w1 = wp.vec3(0.0)
+    w2 = wp.vec3(0.0)
+    w3 = wp.vec3(0.0)
+    met = int(0)
+    for r in range(rounds):
+        t, normal, point, point_start = first_shape_entry(shapes, lo, hi, x0, x1)
+        if t > 1.0:
+            break
+        if r < rounds - 1:
+            # onto the entry's tangent plane, one radius off it, as the missed contact would have put it
+            x1 = x1 + (radius - wp.dot(normal, x1 - point)) * normal
+        else:
+            # still entering after every round (a narrow crevice): stop before the entry
+            # (toward its start as the shape carried it: a wall moving onto the particle pushes it along)
+            x1 = point + (x0 - point_start) * STOP_SHORT
+        v_wall = (point - point_start) / shapes.dt
+        if r == 0:
+            n0 = normal
+            w0 = v_wall
+        elif r == 1:
+            n1 = normal
+            w1 = v_wall
+        elif r == 2:
+            n2 = normal
+            w2 = v_wall
+        else:
+            n3 = normal
+            w3 = v_wall
+        met += 1
+    if met == 0:
+        return
+    v = (x1 - x0) / shapes.dt
+    v = stop_inward(v, n0, w0)
+    if met > 1:
+        v = stop_inward(v, n1, w1)
+    if met > 2:
+        v = stop_inward(v, n2, w2)
+    if met > 3:
+        v = stop_inward(v, n3, w3)
+    particle_q[pi] = x1
+    particle_qd[pi] = v
+    i = slot_of_particle[pi]
+    if i >= 0:
+        xm = slot_xm[i]
+        slot_xm[i] = wp.vec4(x1[0], x1[1], x1[2], xm[3])
+        sorted_v[i] = v
+    wp.atomic_add(stopped_count, 0, 1)
+
+
+def local_bounds(shape_type: int, scale: np.ndarray, source) -> np.ndarray:
+    """Lower and upper corner [m] of a guarded shape in its own frame (an infinite plane: x below -1e29)."""
+    if shape_type in (GeoType.BOX, GeoType.ELLIPSOID):
+        half = np.abs(scale)
+    elif shape_type == GeoType.SPHERE:
+        half = np.full(3, scale[0])
+    elif shape_type == GeoType.CAPSULE:
+        half = np.array([scale[0], scale[0], scale[1] + scale[0]])
+    elif shape_type == GeoType.CYLINDER:
+        half = np.array([scale[0], scale[0], scale[1]])
+    elif shape_type == GeoType.PLANE:
+        if scale[0] > 0.0 and scale[1] > 0.0:
+            half = np.array([0.5 * scale[0], 0.5 * scale[1], 0.0])
+        else:
+            return np.array([[-1.0e30] * 3, [1.0e30] * 3])
+    else:
+        points = np.asarray(source.vertices, dtype=np.float64) * scale
+        return np.stack([points.min(axis=0), points.max(axis=0)])
+    return np.stack([-half, half])
+
+
+class ContinuousCollision:
+    """The shapes :func:`stop_fluid_paths_at_shapes` guards, per world, and its launch.
+
+    Built once with the solver; a model without a guarded shape that particles collide with has
+    none (``ContinuousCollision.build`` returns ``None``) and pays nothing.
+    """
+
+    def __init__(
+        self,
+        model,
+        rows: np.ndarray,
+        shape_list: np.ndarray,
+        guarded: np.ndarray,
+        local_bounds: np.ndarray,
+        kinematic: bool,
+    ):
+        d = model.device
+        self.model = model
+        self.shapes = GuardedShapes()
+        s = self.shapes
+        s.row_start = wp.array(rows.astype(np.int32), dtype=wp.int32, device=d)
+        s.shape = wp.array(shape_list.astype(np.int32), dtype=wp.int32, device=d)
+        s.world_count = int(model.world_count)
+        s.shape_type = model.shape_type
+        s.shape_scale = model.shape_scale
+        s.shape_source = model.shape_source_ptr
+        s.shape_transform = model.shape_transform
+        s.shape_body = model.shape_body
+        #: whether a guarded shape is on a (kinematic) body
+        self.kinematic = kinematic
+        s.body_com = model.body_com if kinematic else wp.zeros(1, dtype=wp.vec3, device=d)
+        self._no_body_q = wp.zeros(1, dtype=wp.transform, device=d)
+        self._no_body_qd = wp.zeros(1, dtype=wp.spatial_vector, device=d)
+        s.local_lower = wp.array(local_bounds[:, 0], dtype=wp.vec3, device=d)
+        s.local_upper = wp.array(local_bounds[:, 1], dtype=wp.vec3, device=d)
+        s.lower = wp.zeros(model.shape_count, dtype=wp.vec3, device=d)
+        s.upper = wp.zeros(model.shape_count, dtype=wp.vec3, device=d)
+        self._guarded = wp.array(guarded.astype(np.int32), dtype=wp.int32, device=d)
+        s.dt = 0.0
+        # static shapes do not move: their bounds once (kinematic ones before every pass)
+        self._bound(self._no_body_q, self._no_body_qd)
+        #: particle substeps whose path into a shape was stopped, since the solver was created (device counter)
+        self.stopped_count = wp.zeros(1, dtype=wp.int32, device=d)
+
+    @classmethod
+    def build(cls, model) -> ContinuousCollision | None:
+        """The guard of ``model``'s static and kinematic shapes that collide with particles, or ``None`` without any."""
+        if not model.shape_count:
+            return None
+        shape_type = model.shape_type.numpy()
+        shape_body = model.shape_body.numpy()
+        flags = model.shape_flags.numpy()
+        scale = model.shape_scale.numpy()
+        kinematic_body = np.zeros(max(int(model.body_count), 1), dtype=bool)
+        if model.body_count:
+            kinematic_body[: model.body_count] = (model.body_flags.numpy() & int(BodyFlags.KINEMATIC)) != 0
+        on_body = shape_body >= 0
+        still = ~on_body | kinematic_body[np.where(on_body, shape_body, 0)]
+        guarded = (
+            still
+            & ((flags & int(ShapeFlags.COLLIDE_PARTICLES)) != 0)
+            & np.isin(shape_type, [int(t) for t in GUARDED_TYPES])
+            # a barrel-sided cylinder is not the straight one intersected here
+            & ~((shape_type == int(GeoType.CYLINDER)) & (scale[:, 2] != 0.0))
+        )
+        index = np.flatnonzero(guarded)
+        if not len(index):
+            return None
+        world_count = int(model.world_count)
+        shape_world = model.shape_world.numpy()[index]
+        rows, shapes = [0], []
+        # world w meets its own shapes and the global ones; a global particle meets every shape
+        for w in range(world_count):
+            mine = index[(shape_world == w) | (shape_world < 0)]
+            shapes.append(mine)
+            rows.append(rows[-1] + len(mine))
+        shapes.append(index)
+        rows.append(rows[-1] + len(index))
+        bounds = np.zeros((model.shape_count, 2, 3), dtype=np.float32)
+        for s in index:
+            bounds[s] = local_bounds(int(shape_type[s]), scale[s], model.shape_source[s])
+        return cls(model, np.array(rows), np.concatenate(shapes), index, bounds, bool(on_body[index].any()))
+
+    def _bound(self, body_q, body_qd) -> None:
+        s = self.shapes
+        s.body_q, s.body_qd = body_q, body_qd
+        wp.launch(bound_guarded_shapes, dim=len(self._guarded), inputs=[s, self._guarded], device=self.model.device)
+
+    def apply(
+        self, fluid_particle, slot_of_particle, slot_xm, sorted_v, particle_q_start, state_out, dt: float
+    ) -> None:
+        """Stop the paths of the substep that ended in ``state_out`` at the shapes they enter.
+
+        ``slot_xm`` and ``sorted_v``: the fluid's slot copies of positions and velocities, kept up to date.
+        """
+        m = self.model
+        s = self.shapes
+        s.dt = dt
+        if self.kinematic:
+            self._bound(state_out.body_q, state_out.body_qd)
+        else:
+            s.body_q, s.body_qd = self._no_body_q, self._no_body_qd
+        wp.launch(
+            stop_fluid_paths_at_shapes,
+            dim=fluid_particle.shape[0],
+            inputs=[
+                s,
+                fluid_particle,
+                slot_of_particle,
+                m.particle_flags,
+                m.particle_world,
+                m.particle_radius,
+                m.particle_inv_mass,
+                particle_q_start,
+                GUARD_ROUNDS,
+            ],
+            outputs=[state_out.particle_q, state_out.particle_qd, slot_xm, sorted_v, self.stopped_count],
+            device=m.device,
+        )
