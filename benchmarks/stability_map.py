@@ -220,7 +220,11 @@ def main(argv=None):
         runs = []
         t0 = time.perf_counter()
         sweep = list(itertools.product(args.iterations, args.speeds, sorted(args.substeps, reverse=True)))
+        failed = set()
         for it, speed, substeps in track(sweep, "stability_map"):
+            if (it, speed) in failed:
+                # fewer substeps only fail harder: not run
+                continue
             r = run_one(args, device, substeps, it, speed)
             runs.append(r)
             print(
@@ -230,8 +234,7 @@ def main(argv=None):
                 flush=True,
             )
             if not r["stable"]:
-                # fewer substeps only fail harder: record them as not run
-                break
+                failed.add((it, speed))
         result = {
             "benchmark": "stability_map",
             **machine_record(device),

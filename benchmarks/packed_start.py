@@ -1,0 +1,150 @@
+# SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
+# SPDX-License-Identifier: Apache-2.0
+
+"""A bad start: fluid placed packed closer than its rest spacing in a closed tank, and how hard it springs apart.
+
+A block of ``--block`` x ``--block`` x ``--layers`` fluid particles (rest spacing 0.1 m) is placed at
+``--fraction`` of the rest spacing on the floor of a closed frictionless tank (``--tank`` m inner edge,
+walls two spacings thick, lid included) and simulated for ``--seconds`` at 60 Hz with ``--substeps`` x
+``--iterations`` and the solver's default keywords. It records the particles that leave the tank (a
+centre more than a spacing beyond a wall), the highest particle reached, the level the expanded fluid
+settles to (the 99th percentile height at the end, plus half a spacing), the largest speed, and what the
+diagnostics reported. Issue #23, item 3: none leaves, and none rises more than 5 spacings above the
+settled level.
+
+Usage::
+
+    python benchmarks/packed_start.py [--fraction 0.7] [--no-continuous-collision] [--json out.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import warnings
+
+import numpy as np
+import warp as wp
+from run_record import machine_record
+
+import newton
+from newton.examples.fluid.common import add_closed_tank
+from newton.examples.fluid.progress import track
+
+SPACING = 0.1  # rest spacing [m]
+
+
+def run(args, device) -> dict:
+    d = SPACING
+    builder = newton.ModelBuilder()
+    packed = args.fraction * d
+    builder.add_particle_grid(
+        pos=wp.vec3(0.5 * args.tank - 0.5 * args.block * packed, 0.5 * args.tank - 0.5 * args.block * packed, 0.5 * d),
+        rot=wp.quat_identity(),
+        vel=wp.vec3(0.0),
+        dim_x=args.block,
+        dim_y=args.block,
+        dim_z=args.layers,
+        cell_x=packed,
+        cell_y=packed,
+        cell_z=packed,
+        mass=1000.0 * d**3,
+        jitter=0.01 * d,
+        radius_mean=0.5 * d,
+        flags=int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID),
+    )
+    add_closed_tank(builder, args.tank, thickness=2.0 * d)
+    model = builder.finalize(device=device)
+    model.soft_contact_mu = 0.0
+    solver = newton.solvers.SolverXPBD(
+        model,
+        iterations=args.iterations,
+        fluid_rest_distance=d,
+        fluid_continuous_collision=args.continuous_collision,
+    )
+    pipeline = newton.CollisionPipeline(model, soft_contact_max=4 * model.particle_count, soft_contact_gap=0.5 * d)
+    contacts = pipeline.contacts()
+    s0, s1 = model.state(), model.state()
+    dt = 1.0 / (60.0 * args.substeps)
+    highest, fastest, left = 0.0, 0.0, 0
+    fastest_first_frame = 0.0
+    for frame in track(range(int(round(args.seconds * 60.0))), "packed_start", unit="frame"):
+        for _ in range(args.substeps):
+            s0.clear_forces()
+            pipeline.collide(s0, contacts)
+            solver.step(s0, s1, None, contacts, dt)
+            s0, s1 = s1, s0
+        q = s0.particle_q.numpy().astype(np.float64)
+        speed = float(np.linalg.norm(s0.particle_qd.numpy(), axis=1).max())
+        if frame == 0:
+            fastest_first_frame = speed
+        highest = max(highest, float(q[:, 2].max()))
+        fastest = max(fastest, speed)
+        left = max(left, int(np.count_nonzero(np.any((q < -d) | (q > args.tank + d), axis=1))))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        stats = solver.fluid_diagnostics(s0)
+    level = float(np.percentile(q[:, 2], 99)) + 0.5 * d
+    return {
+        "particles": int(model.particle_count),
+        "spacing_m": d,
+        "packed_fraction": args.fraction,
+        "tank_m": args.tank,
+        "substeps": args.substeps,
+        "iterations": args.iterations,
+        "seconds": args.seconds,
+        "fluid_continuous_collision": args.continuous_collision,
+        "left_tank": left,
+        "settled_level_m": level,
+        "highest_m": highest,
+        "rise_above_level_spacings": (highest - level) / d,
+        "max_speed_m_s": fastest,
+        "max_speed_first_frame_m_s": fastest_first_frame,
+        "mean_abs_density_error": stats["mean_abs_density_error"],
+        "max_compression": stats["max_compression"],
+        "peak_compression": stats["peak_compression"],
+        "warnings": [str(w.message) for w in caught],
+    }
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--fraction", type=float, default=0.7, help="placed spacing over the rest spacing")
+    parser.add_argument("--block", type=int, default=10, help="particles along each side of the block")
+    parser.add_argument("--layers", type=int, default=20)
+    parser.add_argument("--tank", type=float, default=3.0, help="inner edge of the closed tank [m]")
+    parser.add_argument("--substeps", type=int, default=8)
+    parser.add_argument("--iterations", type=int, default=2)
+    parser.add_argument("--seconds", type=float, default=2.0)
+    parser.add_argument(
+        "--continuous-collision",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="fluid_continuous_collision",
+    )
+    parser.add_argument("--device", default=None)
+    parser.add_argument("--json", default=None)
+    args = parser.parse_args(argv)
+    wp.config.quiet = True
+    device = wp.get_device(args.device)
+    with wp.ScopedDevice(device):
+        r = run(args, device)
+    print(
+        f"{'device':<24}{'particles':>10}{'packed':>7}{'sub x it':>9}{'left':>6}{'rise [d]':>9}{'max m/s':>9}"
+        f"{'mean|e|':>9}{'peak c':>8}"
+    )
+    name = device.name if device.is_cuda else "cpu"
+    print(
+        f"{name:<24}{r['particles']:>10}{r['packed_fraction']:>7.2f}{r['substeps']:>5} x {r['iterations']:<1}"
+        f"{r['left_tank']:>6}{r['rise_above_level_spacings']:>9.1f}{r['max_speed_m_s']:>9.1f}"
+        f"{100 * r['mean_abs_density_error']:>8.2f}%{100 * r['peak_compression']:>7.0f}%"
+    )
+    result = {"benchmark": "packed_start", **machine_record(device), **r}
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(result, f, indent=2)
+    return result
+
+
+if __name__ == "__main__":
+    main()
