@@ -16,7 +16,13 @@ import warp as wp
 from newton.tests.unittest_utils import add_function_test, get_test_devices
 
 import newton
-from newton._src.solvers.xpbd.fluid.continuous_collision import NO_ENTRY, segment_entry
+from newton._src.solvers.xpbd.fluid.continuous_collision import (
+    NO_ENTRY,
+    ContinuousCollision,
+    GuardedShapes,
+    segment_entry,
+    shape_poses,
+)
 from newton.examples.fluid.common import add_closed_tank, revolved_container
 from newton.examples.fluid.example_fluid_xpbd_sdf_container import FILL, RIM, WALL, inner_radius
 from newton.tests.test_fluid_stress import TANK, report, thrown_block
@@ -117,6 +123,51 @@ def test_path_entries_match_sampling(test, device):
         np.testing.assert_allclose(e[hit, 3], expected[hit], atol=3.0e-4)
         test.assertTrue(np.all(e[~hit, 3] == NO_ENTRY))
         test.assertTrue(np.all(np.einsum("ij,ij->i", e[hit, :3], (b - a)[hit]) < 0.0))
+
+
+@wp.kernel
+def poses_of_shape(shapes: GuardedShapes, s: int, poses: wp.array[wp.transform]):
+    start, end = shape_poses(shapes, s)
+    poses[0] = start
+    poses[1] = end
+
+
+def test_kinematic_shape_swept_back_along_its_velocity(test, device):
+    # a kinematic body turning about its off-centre centre of mass while it moves: its shape's pose at the
+    # substep's start is the end pose with the rigid motion of body_qd undone over the substep
+    builder = newton.ModelBuilder()
+    add_block(builder, (2, 2, 2))
+    body = builder.add_body(xform=wp.transform_identity(), is_kinematic=True)
+    offset = wp.transform(wp.vec3(0.0, 0.2, 0.0), wp.quat_from_axis_angle(wp.vec3(1.0, 0.0, 0.0), 0.3))
+    builder.add_shape_box(body, xform=offset, hx=0.1, hy=0.2, hz=0.3)
+    model = builder.finalize(device=device)
+    model.body_com.assign(np.array([[0.1, 0.0, 0.05]], dtype=np.float32))
+    cc = ContinuousCollision.build(model)
+    test.assertTrue(cc.kinematic)
+    angle, omega, v, dt = 0.7, np.array([0.0, 0.0, 3.0]), np.array([1.0, -2.0, 0.5]), 0.01
+    end = wp.transform(wp.vec3(0.4, 0.5, 0.6), wp.quat_from_axis_angle(wp.vec3(0.0, 0.0, 1.0), angle))
+    with wp.ScopedDevice(device):
+        cc.shapes.body_q = wp.array([end], dtype=wp.transform)
+        cc.shapes.body_qd = wp.array([np.concatenate([v, omega])], dtype=wp.spatial_vector)
+        cc.shapes.dt = dt
+        poses = wp.zeros(2, dtype=wp.transform)
+        wp.launch(poses_of_shape, dim=1, inputs=[cc.shapes, 0, poses])
+    start_shape, end_shape = poses.numpy().astype(np.float64)
+
+    def rot_z(a):
+        return np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
+
+    def place(t, point):
+        # a body point's world position at time t before the end (the body turns about z through its centre of mass)
+        com = np.array([0.1, 0.0, 0.05])
+        c_end = np.array([0.4, 0.5, 0.6]) + rot_z(angle) @ com
+        return c_end - v * t + rot_z(angle - 3.0 * t) @ (point - com)
+
+    corner = np.array([0.1, 0.2, 0.3])  # a box corner, in the shape's frame
+    local = np.array(wp.transform_point(offset, wp.vec3(*corner)))
+    for pose, t in ((start_shape, dt), (end_shape, 0.0)):
+        q = wp.transform(wp.vec3(*pose[:3]), wp.quat(*pose[3:]))
+        np.testing.assert_allclose(np.array(wp.transform_point(q, wp.vec3(*corner))), place(t, local), atol=1.0e-5)
 
 
 def substep(sim, collide=True):
