@@ -4,9 +4,10 @@
 """A bad start: fluid placed packed closer than its rest spacing in a closed tank, and how hard it springs apart.
 
 A block of ``--block`` x ``--block`` x ``--layers`` fluid particles (rest spacing 0.1 m) is placed at
-``--fraction`` of the rest spacing on the floor of a closed frictionless tank (``--tank`` m inner edge,
-walls two spacings thick, lid included) and simulated for ``--seconds`` at 60 Hz with ``--substeps`` x
-``--iterations`` and the solver's default keywords. It records the particles that leave the tank (a
+``--fraction`` of the rest spacing on the floor of a closed frictionless box as wide as the block is at
+its rest spacing (so it expands upward, with no dam break's collapse) and ``--height`` m tall, and
+simulated for ``--seconds`` at 60 Hz with ``--substeps`` x ``--iterations`` and the solver's default
+keywords. It records the particles that leave the tank (a
 centre more than a spacing beyond a wall), the highest particle reached, the level the expanded fluid
 settles to (the 99th percentile height at the end, plus half a spacing), the largest speed, and what the
 diagnostics reported. Issue #23, item 3: none leaves, and none rises more than 5 spacings above the
@@ -28,7 +29,7 @@ import warp as wp
 from run_record import machine_record
 
 import newton
-from newton.examples.fluid.common import add_closed_tank
+from newton.examples.fluid.common import add_closed_box
 from newton.examples.fluid.progress import track
 
 SPACING = 0.1  # rest spacing [m]
@@ -38,8 +39,10 @@ def run(args, device) -> dict:
     d = SPACING
     builder = newton.ModelBuilder()
     packed = args.fraction * d
+    edge = args.block * d
+    corner = 0.5 * (edge - args.block * packed) + 0.5 * packed
     builder.add_particle_grid(
-        pos=wp.vec3(0.5 * args.tank - 0.5 * args.block * packed, 0.5 * args.tank - 0.5 * args.block * packed, 0.5 * d),
+        pos=wp.vec3(corner, corner, 0.5 * d),
         rot=wp.quat_identity(),
         vel=wp.vec3(0.0),
         dim_x=args.block,
@@ -53,7 +56,7 @@ def run(args, device) -> dict:
         radius_mean=0.5 * d,
         flags=int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID),
     )
-    add_closed_tank(builder, args.tank, thickness=2.0 * d)
+    add_closed_box(builder, edge, args.height, thickness=2.0 * d)
     model = builder.finalize(device=device)
     model.soft_contact_mu = 0.0
     solver = newton.solvers.SolverXPBD(
@@ -80,7 +83,8 @@ def run(args, device) -> dict:
             fastest_first_frame = speed
         highest = max(highest, float(q[:, 2].max()))
         fastest = max(fastest, speed)
-        left = max(left, int(np.count_nonzero(np.any((q < -d) | (q > args.tank + d), axis=1))))
+        outside = np.any(q[:, :2] < -d, axis=1) | np.any(q[:, :2] > edge + d, axis=1)
+        left = max(left, int(np.count_nonzero(outside | (q[:, 2] < -d) | (q[:, 2] > args.height + d))))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         stats = solver.fluid_diagnostics(s0)
@@ -89,7 +93,7 @@ def run(args, device) -> dict:
         "particles": int(model.particle_count),
         "spacing_m": d,
         "packed_fraction": args.fraction,
-        "tank_m": args.tank,
+        "box_m": [edge, edge, args.height],
         "substeps": args.substeps,
         "iterations": args.iterations,
         "seconds": args.seconds,
@@ -110,9 +114,9 @@ def run(args, device) -> dict:
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--fraction", type=float, default=0.7, help="placed spacing over the rest spacing")
-    parser.add_argument("--block", type=int, default=10, help="particles along each side of the block")
-    parser.add_argument("--layers", type=int, default=20)
-    parser.add_argument("--tank", type=float, default=3.0, help="inner edge of the closed tank [m]")
+    parser.add_argument("--block", type=int, default=14, help="particles along each side of the block")
+    parser.add_argument("--layers", type=int, default=10)
+    parser.add_argument("--height", type=float, default=3.0, help="inner height of the closed box [m]")
     parser.add_argument("--substeps", type=int, default=8)
     parser.add_argument("--iterations", type=int, default=2)
     parser.add_argument("--seconds", type=float, default=2.0)
