@@ -21,12 +21,11 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import json
 import warnings
 
 import numpy as np
 import warp as wp
-from run_record import machine_record
+from run_record import write_record
 
 import newton
 from newton.examples.fluid.common import add_closed_box
@@ -143,11 +142,7 @@ def main(argv=None):
         f"{r['left_tank']:>6}{r['rise_above_level_spacings']:>9.1f}{r['max_speed_m_s']:>9.1f}"
         f"{100 * r['mean_abs_density_error']:>8.2f}%{100 * r['peak_compression']:>7.0f}%"
     )
-    result = {"benchmark": "packed_start", **machine_record(device), **r}
-    if args.json:
-        with open(args.json, "w") as f:
-            json.dump(result, f, indent=2)
-    return result
+    return write_record("packed_start", device, r, args.json)
 
 
 if __name__ == "__main__":

@@ -20,12 +20,11 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import json
 import time
 
 import numpy as np
 import warp as wp
-from run_record import machine_record
+from run_record import write_record
 
 import newton
 from newton._src.solvers.xpbd.fluid.solver_fluid import DEFAULT_NONAFFINE_DAMPING
@@ -164,11 +163,7 @@ def main(argv=None):
         f"{r['max_speed_m_s']:>9.3f}{r['mean_displacement_spacings']:>8.3f}{r['max_displacement_spacings']:>7.2f}"
         f"{r['top_layer_span_spacings']:>6.2f}{100 * r['mean_abs_density_error']:>8.2f}%{100 * r['max_compression']:>6.2f}%"
     )
-    result = {"benchmark": "rest_column", **machine_record(device), **r}
-    if args.json:
-        with open(args.json, "w") as f:
-            json.dump(result, f, indent=2)
-    return result
+    return write_record("rest_column", device, r, args.json)
 
 
 if __name__ == "__main__":

@@ -29,3 +29,21 @@ def machine_record(device) -> dict:
         "newton": newton.__version__,
         "date": datetime.date.today().isoformat(),
     }
+
+
+def write_record(benchmark: str, device, result: dict, path: str | None) -> dict:
+    """The benchmark's JSON record: its name, :func:`machine_record` and ``result``; written to ``path`` if given.
+
+    Args:
+        benchmark: The benchmark's name.
+        device: The ``wp.Device`` it ran on.
+        result: Its measurements and settings.
+        path: Where to write the JSON, or ``None``.
+    """
+    import json  # noqa: PLC0415
+
+    record = {"benchmark": benchmark, **machine_record(device), **result}
+    if path:
+        with open(path, "w") as f:
+            json.dump(record, f, indent=2)
+    return record
