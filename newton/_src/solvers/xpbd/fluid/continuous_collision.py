@@ -428,6 +428,17 @@ def stop_fluid_paths_at_shapes(
     wp.atomic_add(stopped_count, 0, 1)
 
 
+def still_shapes(model) -> np.ndarray:
+    """Per shape of ``model``, whether it is static or on a kinematic body: it moves only as prescribed and takes no
+    reaction from the fluid (such shapes lend wall density and are kept out of by continuous collision)."""
+    shape_body = model.shape_body.numpy()
+    kinematic_body = np.zeros(max(int(model.body_count), 1), dtype=bool)
+    if model.body_count:
+        kinematic_body[: model.body_count] = (model.body_flags.numpy() & int(BodyFlags.KINEMATIC)) != 0
+    on_body = shape_body >= 0
+    return ~on_body | kinematic_body[np.where(on_body, shape_body, 0)]
+
+
 def local_bounds(shape_type: int, scale: np.ndarray, source) -> np.ndarray:
     """Lower and upper corner [m] of a guarded shape in its own frame (an infinite plane: x below -1e29)."""
     if shape_type in (GeoType.BOX, GeoType.ELLIPSOID):
@@ -502,13 +513,8 @@ class ContinuousCollision:
         shape_body = model.shape_body.numpy()
         flags = model.shape_flags.numpy()
         scale = model.shape_scale.numpy()
-        kinematic_body = np.zeros(max(int(model.body_count), 1), dtype=bool)
-        if model.body_count:
-            kinematic_body[: model.body_count] = (model.body_flags.numpy() & int(BodyFlags.KINEMATIC)) != 0
-        on_body = shape_body >= 0
-        still = ~on_body | kinematic_body[np.where(on_body, shape_body, 0)]
         guarded = (
-            still
+            still_shapes(model)
             & ((flags & int(ShapeFlags.COLLIDE_PARTICLES)) != 0)
             & np.isin(shape_type, [int(t) for t in GUARDED_TYPES])
             # a barrel-sided cylinder is not the straight one intersected here
@@ -530,7 +536,7 @@ class ContinuousCollision:
         bounds = np.zeros((model.shape_count, 2, 3), dtype=np.float32)
         for s in index:
             bounds[s] = local_bounds(int(shape_type[s]), scale[s], model.shape_source[s])
-        return cls(model, np.array(rows), np.concatenate(shapes), index, bounds, bool(on_body[index].any()))
+        return cls(model, np.array(rows), np.concatenate(shapes), index, bounds, bool((shape_body[index] >= 0).any()))
 
     def _bound(self, body_q, body_qd) -> None:
         s = self.shapes
@@ -548,9 +554,8 @@ class ContinuousCollision:
         s = self.shapes
         s.dt = dt
         if self.kinematic:
+            # (static shapes were bounded once, at construction)
             self._bound(state_out.body_q, state_out.body_qd)
-        else:
-            s.body_q, s.body_qd = self._no_body_q, self._no_body_qd
         wp.launch(
             stop_fluid_paths_at_shapes,
             dim=fluid_particle.shape[0],

@@ -22,8 +22,7 @@ import numpy as np
 import warp as wp
 
 from ....geometry import ParticleFlags
-from ....sim.enums import BodyFlags
-from .continuous_collision import ContinuousCollision
+from .continuous_collision import ContinuousCollision, still_shapes
 from .diffuse import (
     DIFFUSE_BLOCK_DIM,
     DIFFUSE_DEAD,
@@ -472,15 +471,7 @@ class FluidSolver:
         #: particle-shape contacts of the step in progress (set by the solver), for the wall density
         self.contacts = None
         # static shapes and those of kinematic bodies lend density (see list_wall_contact)
-        self._has_walls = False
-        if model.shape_count:
-            shape_body = model.shape_body.numpy()
-            kinematic = np.zeros(len(shape_body), dtype=bool)
-            if model.body_count:
-                flags = model.body_flags.numpy()
-                on_body = shape_body >= 0
-                kinematic[on_body] = (flags[shape_body[on_body]] & int(BodyFlags.KINEMATIC)) != 0
-            self._has_walls = bool(((shape_body < 0) | kinematic).any())
+        self._has_walls = bool(model.shape_count) and bool(still_shapes(model).any())
         with wp.ScopedDevice(self.device):
             self._no_bodies = wp.zeros(1, dtype=wp.transform)
             self._no_body_flags = wp.zeros(1, dtype=wp.int32)
