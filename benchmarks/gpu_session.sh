@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/performance.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|collision|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|collision|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|exact|surge|diffuse|render|usd|gallery|gltests|tests]...
 set -u
 out=${1:?output folder}; shift
 export PYTHONUNBUFFERED=1
@@ -69,6 +69,11 @@ for what in "$@"; do
       # the speed-accuracy sweep of docs/validation.md at 99,200 particles (Koshizuka & Oka column, 40 per L x 31)
       python3 -W ignore benchmarks/speed_accuracy.py --per-l 40 --depth 31 --sample-every 6 --tolerances 0.005 0.0025 0.001 \
         --json "$out/speed_accuracy_100k_${gpu}.json" 2>&1 | grep -v '^Module' ;;
+    exact)
+      # physical error against cost, problems with exact answers (docs/validation.md "Exact answers"):
+      # the standing wave (about 100k) and Torricelli's jet (about 150k) over substeps x iterations and modes
+      python3 -W ignore benchmarks/accuracy_chart.py --size large --device cuda:0 --json "$out/accuracy_chart_${gpu}.json" \
+        --plot "$out/accuracy_chart_${gpu}.png" 2>&1 | grep -v '^Module' ;;
     tolerance-chart)
       # fixed counts against the tolerance modes at 8 substeps, one session (docs/images/speed_accuracy_tolerance.png)
       sa="python3 -W ignore benchmarks/speed_accuracy.py --per-l 40 --depth 31 --sample-every 6 --substeps 8"

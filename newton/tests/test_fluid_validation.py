@@ -11,6 +11,10 @@ ahead of the experiment (docs/validation.md); the bounds here catch a front that
 
 Runs ``benchmarks/hydrostatic_drift.py`` with ``fluid_density_ramp=0.001`` for the issue's
 hydrostatic target: a settled column drifts less than 0.05 spacings over 5 s.
+
+Runs ``benchmarks/sloshing.py`` and ``benchmarks/torricelli.py`` small, against exact answers: the
+first standing wave's period against linear theory, and the jet of a draining tank against
+Torricelli's speed (docs/validation.md "Exact answers").
 """
 
 import argparse
@@ -20,6 +24,7 @@ import io
 import json
 import sys
 import unittest
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +32,8 @@ from newton.tests.unittest_utils import add_function_test, get_test_devices
 
 BENCHMARK = Path(__file__).resolve().parents[2] / "benchmarks" / "validate_dam_break.py"
 HYDROSTATIC = BENCHMARK.parent / "hydrostatic_drift.py"
+SLOSHING = BENCHMARK.parent / "sloshing.py"
+TORRICELLI = BENCHMARK.parent / "torricelli.py"
 
 
 def load_benchmark(path=BENCHMARK):
@@ -87,6 +94,54 @@ def test_settled_column_stays_at_rest(test, device):
     test.assertLess(last["max_compression"], 0.01)
 
 
+def run_benchmark(test, path, argv: list[str], device) -> dict:
+    if not path.is_file():
+        test.skipTest("benchmarks/ is part of the source checkout, not of the installed wheel")
+    bench = load_benchmark(path)
+    with contextlib.redirect_stdout(io.StringIO()):  # its table
+        return bench.main([*argv, "--device", str(device)])
+
+
+def test_standing_wave_period(test, device):
+    # 20 particles per tank length, h / L = 0.5, 4 across (800 particles), a / h = 0.2, 32 substeps x 2
+    # iterations without the non-affine damping. Measured (CPU): period +0.8 % (linear theory 0.836 s), 50 %
+    # of the amplitude kept per period. At 8 substeps the first mode runs near the shallow-water period
+    # (-17 to -22 %) and at a / h = 0.1 the tank's own motion moves its crossings by a few percent, which is
+    # why this test takes 32 substeps and a / h = 0.2; the issue's 90 % kept per period is not met (open).
+    r = run_benchmark(
+        test,
+        SLOSHING,
+        ["--substeps", "32", "--nonaffine-damping", "0", "--amplitude", "0.2", "--periods", "3", "--settle", "1"],
+        device,
+    )
+    test.assertGreaterEqual(r["periods_measured"], 2.0, r)
+    test.assertLess(abs(r["period_error"]), 0.05, r)
+    # the first extreme of the centre of mass: the mode was set up, not a tank that barely moves
+    test.assertGreater(r["first_extreme_m"], 0.5 * r["theory_first_extreme_m"], r)
+    test.assertLess(r["first_extreme_m"], 1.1 * r["theory_first_extreme_m"], r)
+    test.assertGreater(r["amplitude_kept_per_period"], 0.3, r)
+
+
+def test_torricelli_jet_speed(test, device):
+    # a 0.2 x 0.12 m tank filled 0.3 m high (spacing 0.02 m, 900 particles), a hole of 4 x 4 spacings 4
+    # spacings above the floor, 8 substeps x 2 iterations, 1 s. Measured (CPU): the jet past the vena
+    # contracta at 0.92 of sqrt(2 g H) (frames from 0.83 to 1.12) without the non-affine damping; with the
+    # default 0.1 per substep the damping takes the jet's shear layer and it leaves at 0.75 or less.
+    argv = ["--length", "0.2", "--width", "0.12", "--height", "0.3", "--seconds", "1.0"]
+    undamped = run_benchmark(test, TORRICELLI, [*argv, "--nonaffine-damping", "0"], device)
+    test.assertTrue(undamped["all_finite"])
+    test.assertGreater(undamped["speed_samples"], 20, undamped)
+    test.assertLess(abs(undamped["jet_speed_ratio_mean"] - 1.0), 0.1, undamped)
+    test.assertGreater(undamped["drained_fraction"], 0.1, undamped)
+    # the damped jet lands on the ground with a splash some substeps of which end past 10 % compression
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        damped = run_benchmark(test, TORRICELLI, argv, device)
+    for w in caught:
+        test.assertRegex(str(w.message), "past 10 % compression")
+    test.assertLess(damped["jet_speed_ratio_mean"], undamped["jet_speed_ratio_mean"], damped)
+
+
 class TestFluidValidation(unittest.TestCase):
     pass
 
@@ -102,6 +157,12 @@ add_function_test(
     "test_settled_column_stays_at_rest",
     test_settled_column_stays_at_rest,
     devices=get_test_devices(),
+)
+add_function_test(
+    TestFluidValidation, "test_standing_wave_period", test_standing_wave_period, devices=get_test_devices()
+)
+add_function_test(
+    TestFluidValidation, "test_torricelli_jet_speed", test_torricelli_jet_speed, devices=get_test_devices()
 )
 
 if __name__ == "__main__":

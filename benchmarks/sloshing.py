@@ -1,0 +1,279 @@
+# SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
+# SPDX-License-Identifier: Apache-2.0
+
+"""Sloshing: the first standing wave of a rectangular tank against linear theory (issue #27 item 1).
+
+A slice of water ``--length`` long (x), ``--depth-particles`` particles across (y) and ``h = ratio L`` deep
+stands between six frictionless walls, ``--per-length`` particles along L (spacing ``d = L / N``, mass
+``1000 d^3``). It settles for ``--settle`` seconds with the
+non-affine damping at ``--settle-damping`` (the lattice start's own motion would otherwise stay in an
+undamped tank), then runs with the keywords under test; every particle is given the velocity of the first
+mode of linear potential theory with the surface flat and rising at the left wall,
+
+    u = -a w sin(k x) cosh(k z) / sinh(k h),   w_z = a w cos(k x) sinh(k z) / sinh(k h),
+    w^2 = g k tanh(k h),   k = pi / L   (z from the floor),
+
+so the surface becomes ``eta = a cos(k x) sin(w t)`` with ``a = --amplitude h``. The wave is read from the
+fluid's centre of mass, which the first mode moves by ``-2 L eta_1 / (pi^2 h)`` along x (an average over
+every particle: no surface detection, no churn of single particles). From its zero crossings come the
+periods, from its extremes the share of the amplitude kept per period (each extreme against the one a
+period later, the geometric mean over ``--periods`` periods).
+
+Usage::
+
+    python benchmarks/sloshing.py [--per-length 20 --ratio 0.5 --amplitude 0.1] [--json out.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+
+import numpy as np
+import warp as wp
+from run_record import write_record
+
+import newton
+from newton.examples.fluid.progress import track
+
+GRAVITY = 9.81  # [m/s^2]
+
+
+def add_slice_box(builder: newton.ModelBuilder, length: float, width: float, height: float) -> None:
+    """Six frictionless walls closing ``[0, length] x [0, width] x [0, height]`` [m]; each reaches past the others."""
+    t = 0.1
+    cfg = newton.ModelBuilder.ShapeConfig(mu=0.0)
+    hx, hy, hz = 0.5 * length, 0.5 * width, 0.5 * height
+    for center, extent in (
+        ((hx, hy, -t), (hx + 2 * t, hy + 2 * t, t)),
+        ((hx, hy, height + t), (hx + 2 * t, hy + 2 * t, t)),
+        ((-t, hy, hz), (t, hy + 2 * t, hz + 2 * t)),
+        ((length + t, hy, hz), (t, hy + 2 * t, hz + 2 * t)),
+        ((hx, -t, hz), (hx + 2 * t, t, hz + 2 * t)),
+        ((hx, width + t, hz), (hx + 2 * t, t, hz + 2 * t)),
+    ):
+        xform = wp.transform(wp.vec3(*center), wp.quat_identity())
+        builder.add_shape_box(-1, xform=xform, hx=extent[0], hy=extent[1], hz=extent[2], cfg=cfg)
+
+
+def build(length: float, per_length: int, ratio: float, depth_particles: int, device):
+    """The water slice on the rest lattice and its closed tank; returns the model and the spacing [m]."""
+    d = length / per_length
+    layers = max(1, round(ratio * per_length))
+    builder = newton.ModelBuilder(gravity=(0.0, 0.0, -GRAVITY))
+    builder.add_particle_grid(
+        pos=wp.vec3(0.5 * d, 0.5 * d, 0.5 * d),
+        rot=wp.quat_identity(),
+        vel=wp.vec3(0.0),
+        dim_x=per_length,
+        dim_y=depth_particles,
+        dim_z=layers,
+        cell_x=d,
+        cell_y=d,
+        cell_z=d,
+        mass=1000.0 * d**3,
+        jitter=0.0,
+        radius_mean=0.5 * d,
+        flags=int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID),
+    )
+    add_slice_box(builder, length, depth_particles * d, 3.0 * layers * d)
+    model = builder.finalize(device=device)
+    model.soft_contact_mu = 0.0
+    return model, d
+
+
+def mode_velocity(q: np.ndarray, length: float, depth: float, amplitude: float) -> tuple[np.ndarray, float]:
+    """The first mode's velocity [m/s] at positions ``q`` with the surface flat and rising at x = 0; and w [rad/s]."""
+    k = math.pi / length
+    omega = math.sqrt(GRAVITY * k * math.tanh(k * depth))
+    x, z = q[:, 0], np.clip(q[:, 2], 0.0, depth)
+    scale = amplitude * omega / math.sinh(k * depth)
+    v = np.zeros_like(q)
+    v[:, 0] = -scale * np.sin(k * x) * np.cosh(k * z)
+    v[:, 2] = scale * np.cos(k * x) * np.sinh(k * z)
+    return v, omega
+
+
+def crossings(t: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Times [s] where ``s`` changes sign, by linear interpolation."""
+    i = np.nonzero(np.signbit(s[:-1]) != np.signbit(s[1:]))[0]
+    return t[i] - s[i] * (t[i + 1] - t[i]) / (s[i + 1] - s[i])
+
+
+def analyse(t: np.ndarray, s: np.ndarray, periods: int, floor: float = 0.1) -> dict:
+    """Period and amplitude kept per period of a standing wave's signal ``s(t)`` (centre-of-mass offset).
+
+    Only the half periods whose extreme is above ``floor`` times the first count: below it the wave is
+    lost in the tank's own motion, whose zero crossings say nothing of the wave.
+    """
+    # (t = 0 itself is the start's zero, not a crossing)
+    zeros = crossings(t[1:], s[1:])
+    bounds = np.concatenate([[0.0], zeros])
+    extremes = np.asarray(
+        [float(np.abs(s[(t >= a) & (t <= b)]).max()) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+    )
+    if len(extremes) == 0:
+        return {
+            "periods_measured": 0,
+            "period_s": math.nan,
+            "period_spread_s": math.nan,
+            "first_extreme_m": 0.0,
+            "amplitude_kept_per_period": math.nan,
+            "amplitude_after_periods": math.nan,
+        }
+    extremes = extremes[: 2 * periods + 1]
+    above = int(np.argmin(extremes >= floor * extremes[0])) if (extremes < floor * extremes[0]).any() else len(extremes)
+    extremes = extremes[:above]
+    # half periods between crossings; the first runs from t = 0, a quarter period before the first extreme
+    half = np.diff(zeros)[: max(0, above - 1)]
+    kept = extremes[2:] / extremes[:-2]
+    return {
+        "periods_measured": float(len(half) / 2),
+        "period_s": float(2.0 * half.mean()) if len(half) else math.nan,
+        "period_spread_s": float(2.0 * half.std()) if len(half) else math.nan,
+        "first_extreme_m": float(extremes[0]),
+        "amplitude_kept_per_period": float(np.exp(np.log(kept).mean())) if len(kept) else math.nan,
+        "amplitude_after_periods": float(extremes[-1] / extremes[0]),
+    }
+
+
+def run(args, device) -> dict:
+    length = args.length
+    model, d = build(length, args.per_length, args.ratio, args.depth_particles, device)
+    layers = max(1, round(args.ratio * args.per_length))
+    solver = newton.solvers.SolverXPBD(
+        model,
+        iterations=args.iterations,
+        fluid_rest_distance=d,
+        fluid_viscosity=args.viscosity,
+        fluid_warm_start=args.warm_start,
+    )
+    damping = solver.fluid_nonaffine_damping if args.nonaffine_damping is None else args.nonaffine_damping
+    pipeline = newton.CollisionPipeline(model, soft_contact_max=4 * model.particle_count, soft_contact_gap=0.5 * d)
+    contacts = pipeline.contacts()
+    states = [model.state(), model.state()]
+    dt = 1.0 / 60.0 / args.substeps
+
+    def substeps():
+        for _ in range(args.substeps):
+            pipeline.collide(states[0], contacts)
+            solver.step(states[0], states[1], None, contacts, dt)
+            states[0], states[1] = states[1], states[0]
+
+    graph = None
+
+    def frame():
+        # on CUDA one captured graph per frame (an even substep count leaves the states where they were)
+        nonlocal graph
+        if not device.is_cuda or args.substeps % 2:
+            substeps()
+            return
+        if graph is None:
+            with wp.ScopedCapture(device) as capture:
+                substeps()
+            graph = capture.graph
+        if graph is not None:
+            wp.capture_launch(graph)
+
+    start = time.perf_counter()
+    # the lattice start's settling motion would stay in an undamped tank as noise: settle it out first
+    solver.fluid_nonaffine_damping = args.settle_damping
+    for _ in track(range(round(args.settle * 60.0)), "sloshing: settling", unit="frame"):
+        frame()
+    solver.fluid_nonaffine_damping = damping
+    q = states[0].particle_q.numpy().astype(np.float64)
+    # the settled surface: the particles' volume over the floor area (the tank's own level)
+    level = float(model.particle_count * d**3 / (length * args.depth_particles * d))
+    amplitude = args.amplitude * level
+    v, omega = mode_velocity(q, length, level, amplitude)
+    states[0].particle_qd.assign(v.astype(np.float32))
+    x_rest = float(q[:, 0].mean())
+    period = 2.0 * math.pi / omega
+    frames = math.ceil((args.periods + 0.75) * period * 60.0)
+    t, s = [0.0], [0.0]
+    simulated = 0.0  # [s] of the frames themselves, read-backs left out
+    for f in track(range(frames), "sloshing: waves", unit="frame"):
+        tick = time.perf_counter()
+        frame()
+        wp.synchronize_device(device)
+        simulated += time.perf_counter() - tick
+        t.append((f + 1) / 60.0)
+        s.append(float(states[0].particle_q.numpy()[:, 0].astype(np.float64).mean()) - x_rest)
+    wall = time.perf_counter() - start
+    t, s = np.asarray(t), np.asarray(s)
+    result = analyse(t, s, args.periods)
+    stats = solver.fluid_diagnostics(states[0])
+    return {
+        "particles": int(model.particle_count),
+        "length_m": length,
+        "per_length": args.per_length,
+        "ratio_h_L": args.ratio,
+        "depth_m": level,
+        "layers": layers,
+        "depth_particles": args.depth_particles,
+        "amplitude_m": amplitude,
+        "substeps": args.substeps,
+        "iterations": args.iterations,
+        "viscosity": args.viscosity,
+        "warm_start": args.warm_start,
+        "nonaffine_damping": damping,
+        "settle_s": args.settle,
+        "settle_damping": args.settle_damping,
+        "relaxation": solver.fluid_relaxation,
+        "theory_period_s": period,
+        "theory_first_extreme_m": 2.0 * length * amplitude / (math.pi**2 * level),
+        **result,
+        "period_error": result["period_s"] / period - 1.0,
+        "mean_abs_density_error": stats["mean_abs_density_error"],
+        "max_compression": stats["max_compression"],
+        "ms_per_frame": 1000.0 * simulated / frames,
+        "wall_s": wall,
+        "signal_t_s": t[:: max(1, len(t) // 400)].tolist(),
+        "signal_m": s[:: max(1, len(s) // 400)].tolist(),
+    }
+
+
+def parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--length", type=float, default=0.5, help="tank length L [m]")
+    p.add_argument("--per-length", type=int, default=20, help="particles along L")
+    p.add_argument("--ratio", type=float, default=0.5, help="depth over length h / L")
+    p.add_argument("--depth-particles", type=int, default=4, help="particles across the slice (y)")
+    p.add_argument("--amplitude", type=float, default=0.1, help="wave amplitude over depth a / h")
+    p.add_argument("--periods", type=int, default=10)
+    p.add_argument("--settle", type=float, default=2.0, help="[s]")
+    p.add_argument("--settle-damping", type=float, default=1.0, help="fluid_nonaffine_damping while settling")
+    p.add_argument("--substeps", type=int, default=8)
+    p.add_argument("--iterations", type=int, default=2)
+    p.add_argument("--viscosity", type=float, default=0.0)
+    p.add_argument(
+        "--nonaffine-damping", type=float, default=None, help="fluid_nonaffine_damping (default: the solver's)"
+    )
+    p.add_argument("--warm-start", type=float, default=0.0, help="fluid_warm_start")
+    p.add_argument("--device", default=None)
+    p.add_argument("--json", default=None)
+    return p
+
+
+def main(argv=None):
+    args = parser().parse_args(argv)
+    wp.config.quiet = True
+    device = wp.get_device(args.device)
+    with wp.ScopedDevice(device):
+        r = run(args, device)
+    print(
+        f"{'device':<10}{'particles':>10}{'N/L':>5}{'h/L':>5}{'sub x it':>9}{'damping':>8}{'T theory':>9}"
+        f"{'T':>8}{'err':>7}{'kept/T':>8}{'mean|e|':>8}"
+    )
+    name = device.name if device.is_cuda else "cpu"
+    print(
+        f"{name:<10}{r['particles']:>10}{r['per_length']:>5}{r['ratio_h_L']:>5.2f}{r['substeps']:>5} x {r['iterations']:<1}"
+        f"{r['nonaffine_damping']:>8.2f}{r['theory_period_s']:>9.4f}{r['period_s']:>8.4f}{100 * r['period_error']:>6.1f}%"
+        f"{r['amplitude_kept_per_period']:>8.3f}{100 * r['mean_abs_density_error']:>7.2f}%"
+    )
+    return write_record("sloshing", device, r, args.json)
+
+
+if __name__ == "__main__":
+    main()
