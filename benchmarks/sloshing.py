@@ -32,6 +32,7 @@ import time
 
 import numpy as np
 import warp as wp
+from frames import Frames
 from run_record import write_record
 
 import newton
@@ -153,28 +154,8 @@ def run(args, device) -> dict:
     pipeline = newton.CollisionPipeline(model, soft_contact_max=4 * model.particle_count, soft_contact_gap=0.5 * d)
     contacts = pipeline.contacts()
     states = [model.state(), model.state()]
-    dt = 1.0 / 60.0 / args.substeps
 
-    def substeps():
-        for _ in range(args.substeps):
-            pipeline.collide(states[0], contacts)
-            solver.step(states[0], states[1], None, contacts, dt)
-            states[0], states[1] = states[1], states[0]
-
-    graph = None
-
-    def frame():
-        # on CUDA one captured graph per frame (an even substep count leaves the states where they were)
-        nonlocal graph
-        if not device.is_cuda or args.substeps % 2:
-            substeps()
-            return
-        if graph is None:
-            with wp.ScopedCapture(device) as capture:
-                substeps()
-            graph = capture.graph
-        if graph is not None:
-            wp.capture_launch(graph)
+    frame = Frames(solver, pipeline, contacts, states, args.substeps, device)
 
     start = time.perf_counter()
     # the lattice start's settling motion would stay in an undamped tank as noise: settle it out first

@@ -28,6 +28,7 @@ import time
 
 import numpy as np
 import warp as wp
+from frames import Frames
 from run_record import write_record
 
 import newton
@@ -101,30 +102,10 @@ def run(args, device) -> dict:
     pipeline = newton.CollisionPipeline(model, soft_contact_max=6 * model.particle_count, soft_contact_gap=0.5 * d)
     contacts = pipeline.contacts()
     states = [model.state(), model.state()]
-    dt = 1.0 / 60.0 / args.substeps
     x_out, zc = hole["x_out"], hole["z_center"]
     z_plane = zc - args.fall
 
-    def substeps():
-        for _ in range(args.substeps):
-            pipeline.collide(states[0], contacts)
-            solver.step(states[0], states[1], None, contacts, dt)
-            states[0], states[1] = states[1], states[0]
-
-    graph = None
-
-    def frame():
-        # on CUDA one captured graph per frame (an even substep count leaves the states where they were)
-        nonlocal graph
-        if not device.is_cuda or args.substeps % 2:
-            substeps()
-            return
-        if graph is None:
-            with wp.ScopedCapture(device) as capture:
-                substeps()
-            graph = capture.graph
-        if graph is not None:
-            wp.capture_launch(graph)
+    frame = Frames(solver, pipeline, contacts, states, args.substeps, device)
 
     n = model.particle_count
     exit_head = np.full(n, np.nan)  # head when the particle left through the hole [m]
