@@ -4,10 +4,11 @@
 """Physical error against cost: the standing wave and Torricelli's jet over substeps x iterations (issue #27 item 5).
 
 Runs ``sloshing.py`` (the period's error against linear theory, and the share of the amplitude kept per
-period) and ``torricelli.py`` (the jet speed's error against sqrt(2 g H)) for every substeps x iterations
+period), ``torricelli.py`` (the jet speed's error against sqrt(2 g H)) and ``hydrostatic_pressure.py``
+(the floor force against the weight, the largest layer's pressure error) for every substeps x iterations
 of ``--substeps`` x ``--iterations`` in each mode: the solver's defaults, without the non-affine damping,
-and with the warm start. ``--size small`` is the CPU size (800 and 2,400 particles), ``--size large``
-the GPU one (about 100k and 150k). Prints a table, writes every run's record to ``--json`` and, with
+and with the warm start. ``--size small`` is the CPU size (800, 2,400 and 1,024 particles), ``--size large``
+the GPU one (about 100k, 150k and 100k). Prints a table, writes every run's record to ``--json`` and, with
 ``--plot``, one panel per error against ms per frame (the frames alone, read-backs left out, no graph
 capture on the CPU, one CUDA graph per frame on a GPU), one curve per mode and iteration count, with the real-time line (16.7 ms per 60 Hz frame).
 
@@ -23,6 +24,7 @@ import contextlib
 import io
 import json
 
+import hydrostatic_pressure
 import sloshing
 import torricelli
 import warp as wp
@@ -36,17 +38,18 @@ MODES = {
     "warm start 0.5": ["--warm-start", "0.5"],
 }
 SIZES = {
-    "small": {"sloshing": ["--per-length", "20", "--depth-particles", "4"], "torricelli": []},
+    "small": {"sloshing": ["--per-length", "20", "--depth-particles", "4"], "torricelli": [], "pressure": []},
     "large": {
         "sloshing": ["--per-length", "160", "--depth-particles", "8"],
         "torricelli": ["--spacing", "0.005", "--hole", "16", "--sill", "16"],
+        "pressure": ["--n", "50", "--layers", "40"],
     },
 }
 
 
 def measure(problem: str, extra: list[str], device) -> dict:
     """One run of a problem's benchmark with ``extra`` arguments; its record."""
-    module = sloshing if problem == "sloshing" else torricelli
+    module = {"sloshing": sloshing, "torricelli": torricelli, "pressure": hydrostatic_pressure}[problem]
     args = module.parser().parse_args([*extra, "--device", str(device)])
     with contextlib.redirect_stdout(io.StringIO()), wp.ScopedDevice(device):
         return module.run(args, device)
@@ -56,6 +59,8 @@ def error(problem: str, r: dict) -> dict:
     """The physical errors a run is charted by."""
     if problem == "sloshing":
         return {"period_error": r["period_error"], "amplitude_kept_per_period": r["amplitude_kept_per_period"]}
+    if problem == "pressure":
+        return {"floor_force_error": r["floor_force_error"], "pressure_error_max": r["pressure_error_max"]}
     return {"jet_speed_error": r["jet_speed_ratio_mean"] - 1.0}
 
 
@@ -69,8 +74,11 @@ def plot(rows: list[dict], path: str, title: str) -> None:
         ("sloshing", "period_error", "standing wave: |period error|", True),
         ("sloshing", "amplitude_kept_per_period", "standing wave: 1 - amplitude kept per period", False),
         ("torricelli", "jet_speed_error", "Torricelli: |jet speed error|", True),
+        ("pressure", "pressure_error_max", "hydrostatic: largest layer's |pressure error|", True),
     ]
-    fig, axes = plt.subplots(1, len(panels), figsize=(5 * len(panels), 4.2))
+    panels = [panel for panel in panels if any(r["problem"] == panel[0] for r in rows)]
+    fig, axes = plt.subplots(1, len(panels), figsize=(5 * len(panels), 4.2), squeeze=False)
+    axes = axes[0]
     for ax, (problem, key, label, absolute) in zip(axes, panels, strict=True):
         curves = {}
         for r in rows:
@@ -99,7 +107,7 @@ def main(argv=None):
     parser.add_argument("--substeps", type=int, nargs="+", default=[4, 8, 16, 32])
     parser.add_argument("--iterations", type=int, nargs="+", default=[2, 4])
     parser.add_argument("--modes", nargs="+", default=list(MODES), choices=list(MODES))
-    parser.add_argument("--problems", nargs="+", default=["sloshing", "torricelli"])
+    parser.add_argument("--problems", nargs="+", default=["sloshing", "torricelli", "pressure"])
     parser.add_argument("--device", default=None)
     parser.add_argument("--json", default=None)
     parser.add_argument("--plot", default=None)
@@ -132,7 +140,7 @@ def main(argv=None):
         r = {k: v for k, v in r.items() if not k.startswith(("signal", "speed_rows"))}
         row = {"problem": problem, "mode": mode, **r, **error(problem, r)}
         rows.append(row)
-        e = row.get("period_error", row.get("jet_speed_error"))
+        e = row.get("period_error", row.get("jet_speed_error", row.get("floor_force_error")))
         kept = row.get("amplitude_kept_per_period", float("nan"))
         if args.json:  # after every run: a run cut short keeps what it measured
             with open(args.json, "w") as f:

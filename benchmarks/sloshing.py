@@ -149,6 +149,7 @@ def run(args, device) -> dict:
         fluid_rest_distance=d,
         fluid_viscosity=args.viscosity,
         fluid_warm_start=args.warm_start,
+        fluid_smoothing_length=None if args.smoothing_ratio is None else args.smoothing_ratio * d,
     )
     damping = solver.fluid_nonaffine_damping if args.nonaffine_damping is None else args.nonaffine_damping
     pipeline = newton.CollisionPipeline(model, soft_contact_max=4 * model.particle_count, soft_contact_gap=0.5 * d)
@@ -198,6 +199,7 @@ def run(args, device) -> dict:
         "iterations": args.iterations,
         "viscosity": args.viscosity,
         "warm_start": args.warm_start,
+        "smoothing_length_m": solver.fluid_smoothing_length,
         "nonaffine_damping": damping,
         "settle_s": args.settle,
         "settle_damping": args.settle_damping,
@@ -232,6 +234,9 @@ def parser() -> argparse.ArgumentParser:
         "--nonaffine-damping", type=float, default=None, help="fluid_nonaffine_damping (default: the solver's)"
     )
     p.add_argument("--warm-start", type=float, default=0.0, help="fluid_warm_start")
+    p.add_argument(
+        "--smoothing-ratio", type=float, default=None, help="fluid_smoothing_length / spacing (default: the solver's)"
+    )
     p.add_argument("--device", default=None)
     p.add_argument("--json", default=None)
     return p

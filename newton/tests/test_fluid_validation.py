@@ -12,9 +12,10 @@ ahead of the experiment (docs/validation.md); the bounds here catch a front that
 Runs ``benchmarks/hydrostatic_drift.py`` with ``fluid_density_ramp=0.001`` for the issue's
 hydrostatic target: a settled column drifts less than 0.05 spacings over 5 s.
 
-Runs ``benchmarks/sloshing.py`` and ``benchmarks/torricelli.py`` small, against exact answers: the
-first standing wave's period against linear theory, and the jet of a draining tank against
-Torricelli's speed (docs/validation.md "Exact answers").
+Runs ``benchmarks/sloshing.py``, ``benchmarks/torricelli.py`` and ``benchmarks/hydrostatic_pressure.py``
+small, against exact answers: the first standing wave's period against linear theory, the jet of a
+draining tank against Torricelli's speed, and the pressure in a settled column against rho g (H - z)
+(docs/validation.md "Exact answers").
 """
 
 import argparse
@@ -34,6 +35,7 @@ BENCHMARK = Path(__file__).resolve().parents[2] / "benchmarks" / "validate_dam_b
 HYDROSTATIC = BENCHMARK.parent / "hydrostatic_drift.py"
 SLOSHING = BENCHMARK.parent / "sloshing.py"
 TORRICELLI = BENCHMARK.parent / "torricelli.py"
+PRESSURE = BENCHMARK.parent / "hydrostatic_pressure.py"
 
 
 def load_benchmark(path=BENCHMARK):
@@ -99,7 +101,9 @@ def run_benchmark(test, path, argv: list[str], device) -> dict:
         test.skipTest("benchmarks/ is part of the source checkout, not of the installed wheel")
     bench = load_benchmark(path)
     with contextlib.redirect_stdout(io.StringIO()):  # its table
-        return bench.main([*argv, "--device", str(device)])
+        record = bench.main([*argv, "--device", str(device)])
+    # the scalars only: failure messages without the sampled signals
+    return {k: v for k, v in record.items() if not isinstance(v, list)}
 
 
 def test_standing_wave_period(test, device):
@@ -142,6 +146,22 @@ def test_torricelli_jet_speed(test, device):
     test.assertLess(damped["jet_speed_ratio_mean"], undamped["jet_speed_ratio_mean"], damped)
 
 
+def test_hydrostatic_pressure(test, device):
+    # 8 x 8 x 16 particles (spacing 0.05 m) settled in a closed box, 8 substeps x 2 iterations, the
+    # default keywords; the pressure the density multipliers imply, averaged over 1 s. Measured (CPU):
+    # the floor force 0.9 % above the weight, the side wall's 1.0 % below rho g H^2 W / 2, the pressure
+    # gradient 2.9 % steep; single layers next to the floor alternate by up to 14 % (open: the issue asks
+    # for 5 %), the mean over the layers below the top two is 1.2 % low.
+    r = run_benchmark(test, PRESSURE, [], device)
+    test.assertLess(abs(r["floor_force_error"]), 0.02, r)
+    test.assertLess(abs(r["side_force_error"]), 0.05, r)
+    test.assertLess(abs(r["pressure_gradient_error"]), 0.05, r)
+    test.assertLess(abs(r["pressure_error_mean"]), 0.05, r)
+    # the walls' ghost density carries most of the load, the particle-shape contacts the rest
+    test.assertGreater(r["floor_ghost_force_share"], 0.5, r)
+    test.assertLess(r["floor_ghost_force_share"], 1.0, r)
+
+
 class TestFluidValidation(unittest.TestCase):
     pass
 
@@ -163,6 +183,9 @@ add_function_test(
 )
 add_function_test(
     TestFluidValidation, "test_torricelli_jet_speed", test_torricelli_jet_speed, devices=get_test_devices()
+)
+add_function_test(
+    TestFluidValidation, "test_hydrostatic_pressure", test_hydrostatic_pressure, devices=get_test_devices()
 )
 
 if __name__ == "__main__":

@@ -1,0 +1,207 @@
+# SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
+# SPDX-License-Identifier: Apache-2.0
+
+"""Hydrostatic pressure: the pressure and wall forces the density constraint implies in a settled column (issue #27 item 3).
+
+The column of ``rest_column.py`` (``--n`` x ``--n`` x ``--layers`` particles, spacing 0.05 m, in a closed
+frictionless box) settles for ``--settle`` seconds with the non-affine damping at ``--settle-damping``,
+runs ``--relax`` seconds at the keywords under test, then averages over ``--measure`` seconds (every
+frame's last substep):
+
+- the pressure: a substep moves particle ``i`` by ``w (m / rho0) sum_j (L_i + L_j) grad W_ij`` from the
+  multipliers ``L`` it summed over its density passes (``w`` the relaxation), a force ``m / dt^2`` times
+  that. The pressure it implies is the ``p = -K L`` whose gradient, on the rest lattice, those pair
+  forces equal (``-V grad p``, ``V = d^3``): ``K = w m rho_V |sum_j s(r_j) r_j| / (3 rho0 dt^2)``, ``s`` the
+  spiky gradient's magnitude, ``rho_V = m / d^3``. Compared per layer with ``rho_V g (H - z)``, ``H`` the
+  level at the rest spacing (the fluid's volume over the floor), below the top two layers;
+- the forces on the walls: from the straight line through the layers' pressures, the floor's
+  ``p(0) A`` against the fluid's weight and a side wall's ``W integral p dz`` against ``rho_V g H^2 W / 2``;
+  and the part of each the wall's ghost density carries, ``(m w / dt^2) sum_i L_i grad c_wall(x_i)``
+  (the particle-shape contacts carry the rest).
+
+The multipliers are read from the warm-start store: ``fluid_warm_start`` keeps that share of a substep's
+summed multipliers for the next; at the default ``--warm-start 1e-6`` the carried part changes the step
+by a millionth.
+
+Usage::
+
+    python benchmarks/hydrostatic_pressure.py [--n 8 --layers 16] [--substeps 8 --iterations 2] [--json out.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+
+import numpy as np
+import warp as wp
+from frames import Frames
+from rest_column import GRAVITY, SPACING, build
+from run_record import write_record
+
+import newton
+from newton._src.solvers.xpbd.fluid.solver_fluid import rest_lattice
+from newton.examples.fluid.progress import track
+
+
+def pressure_factor(solver, mass: float, d: float, dt: float) -> float:
+    """``K`` of ``p = -K L`` [Pa/m^2]: the pressure whose lattice gradient the multipliers' pair forces equal."""
+    fluid = solver._fluid
+    h = solver.fluid_smoothing_length
+    r = np.linalg.norm(rest_lattice(d, h), axis=1)
+    r = r[(r > 0.0) & (r < h)]
+    spiky = 45.0 / (math.pi * h**6) * (h - r) ** 2
+    rho_v = mass / d**3
+    return solver.fluid_relaxation * mass * rho_v * float((spiky * r).sum()) / (3.0 * fluid.rest_density * dt * dt)
+
+
+def wall_gradient(solver, distance: np.ndarray) -> np.ndarray:
+    """The walls' share of ``rho / rho0`` differentiated against the distance from the wall [1/m]."""
+    fluid = solver._fluid
+    table = fluid.wall_table_grad.numpy().astype(np.float64)
+    step = solver.fluid_smoothing_length / (len(table) - 1)
+    u = np.clip(distance, 0.0, None) / step
+    scale = fluid.lattice_density / fluid.rest_density
+    return np.interp(u, np.arange(len(table)), table, right=0.0) * scale
+
+
+def run(args, device) -> dict:
+    d = SPACING
+    model = build(args.n, args.layers, device)
+    solver = newton.solvers.SolverXPBD(
+        model, iterations=args.iterations, fluid_rest_distance=d, fluid_warm_start=args.warm_start
+    )
+    damping = solver.fluid_nonaffine_damping if args.nonaffine_damping is None else args.nonaffine_damping
+    pipeline = newton.CollisionPipeline(model, soft_contact_max=2 * model.particle_count, soft_contact_gap=0.5 * d)
+    contacts = pipeline.contacts()
+    states = [model.state(), model.state()]
+    frame = Frames(solver, pipeline, contacts, states, args.substeps, device)
+    mass = float(model.particle_mass.numpy()[0])
+    start = time.perf_counter()
+    solver.fluid_nonaffine_damping = args.settle_damping
+    for _ in track(range(round(args.settle * 60.0)), "hydrostatic_pressure: settling", unit="frame"):
+        frame()
+    solver.fluid_nonaffine_damping = damping
+    for _ in track(range(round(args.relax * 60.0)), "hydrostatic_pressure: relaxing", unit="frame"):
+        frame()
+    count = model.particle_count
+    lam_sum = np.zeros(count)
+    q_sum = np.zeros((count, 3))
+    frames = round(args.measure * 60.0)
+    simulated = 0.0  # [s] of the frames themselves, read-backs left out
+    for _ in track(range(frames), "hydrostatic_pressure: measuring", unit="frame"):
+        tick = time.perf_counter()
+        frame()
+        wp.synchronize_device(device)
+        simulated += time.perf_counter() - tick
+        lam_sum += solver._fluid.particle_lambda.numpy().astype(np.float64) / args.warm_start
+        q_sum += states[0].particle_q.numpy().astype(np.float64)
+    wall = time.perf_counter() - start
+    lam, q = lam_sum / frames, q_sum / frames
+    dt = 1.0 / 60.0 / args.substeps
+    edge = args.n * d
+    level = count * d**3 / (edge * edge)
+    rho_v = mass / d**3
+    weight = count * mass * GRAVITY
+    # the walls' pushes on the fluid through their ghost density: the floor (z = 0) and the wall at x = 0
+    force = mass * solver.fluid_relaxation / (dt * dt)
+    floor = float(force * (lam * wall_gradient(solver, q[:, 2])).sum())
+    side = float(force * (lam * wall_gradient(solver, q[:, 0])).sum())
+    side_theory = 0.5 * rho_v * GRAVITY * level**2 * edge
+    # the pressure per layer, away from the side walls' first layer (their ghost density shares the load)
+    p = -pressure_factor(solver, mass, d, dt) * lam
+    inner = (q[:, 0] > d) & (q[:, 0] < edge - d) & (q[:, 1] > d) & (q[:, 1] < edge - d)
+    layer = np.floor(q[:, 2] / d).astype(int)
+    rows = []
+    for k in range(layer.max() + 1):
+        pick = inner & (layer == k)
+        if not pick.any():
+            continue
+        z = float(q[pick, 2].mean())
+        theory = rho_v * GRAVITY * (level - z)
+        rows.append({"layer": k, "z_m": z, "pressure_Pa": float(p[pick].mean()), "theory_Pa": theory})
+    below = [r for r in rows if r["layer"] < max(r["layer"] for r in rows) - 1]
+    errors = np.array([r["pressure_Pa"] / r["theory_Pa"] - 1.0 for r in below])
+    # the straight line through the layers' pressures: its slope against -rho g, and the forces it puts
+    # on the floor (its value at z = 0 over the floor) and on a side wall (its integral up to its zero)
+    slope, p0 = np.polyfit([r["z_m"] for r in below], [r["pressure_Pa"] for r in below], 1)
+    top = -p0 / slope
+    stats = solver.fluid_diagnostics(states[0])
+    return {
+        "particles": int(count),
+        "n": args.n,
+        "layers": args.layers,
+        "substeps": args.substeps,
+        "iterations": args.iterations,
+        "nonaffine_damping": damping,
+        "warm_start": args.warm_start,
+        "relaxation": solver.fluid_relaxation,
+        "level_m": level,
+        "weight_N": weight,
+        "pressure_gradient_error": float(-slope / (rho_v * GRAVITY) - 1.0),
+        "floor_force_N": float(p0 * edge * edge),
+        "floor_force_error": float(p0 * edge * edge / weight - 1.0),
+        "side_force_theory_N": side_theory,
+        "side_force_N": float(0.5 * p0 * top * edge),
+        "side_force_error": float(0.5 * p0 * top * edge / side_theory - 1.0),
+        # the walls' own pushes through their ghost density (the particle-shape contacts carry the rest)
+        "floor_ghost_force_share": floor / weight,
+        "side_ghost_force_share": side / side_theory,
+        "pressure_error_max": float(np.abs(errors).max()),
+        "pressure_error_mean": float(errors.mean()),
+        "pressure_rows": rows,
+        "mean_abs_density_error": stats["mean_abs_density_error"],
+        "max_compression": stats["max_compression"],
+        "ms_per_frame": 1000.0 * simulated / frames,
+        "wall_s": wall,
+    }
+
+
+def parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--n", type=int, default=8, help="particles along each side of the column")
+    p.add_argument("--layers", type=int, default=16)
+    p.add_argument("--substeps", type=int, default=8)
+    p.add_argument("--iterations", type=int, default=2)
+    p.add_argument(
+        "--nonaffine-damping", type=float, default=None, help="fluid_nonaffine_damping (default: the solver's)"
+    )
+    p.add_argument("--warm-start", type=float, default=1e-6, help="fluid_warm_start (the multipliers are read from it)")
+    p.add_argument("--settle", type=float, default=2.0, help="[s]")
+    p.add_argument("--settle-damping", type=float, default=1.0, help="fluid_nonaffine_damping while settling")
+    p.add_argument("--relax", type=float, default=1.0, help="[s] at the keywords under test before measuring")
+    p.add_argument("--measure", type=float, default=1.0, help="[s]")
+    p.add_argument("--device", default=None)
+    p.add_argument("--json", default=None)
+    return p
+
+
+def main(argv=None):
+    args = parser().parse_args(argv)
+    wp.config.quiet = True
+    device = wp.get_device(args.device)
+    with wp.ScopedDevice(device):
+        r = run(args, device)
+    print(f"{'layer':>6}{'z [m]':>8}{'p [Pa]':>10}{'rho g (H - z)':>15}{'error':>8}")
+    for row in r["pressure_rows"]:
+        print(
+            f"{row['layer']:>6}{row['z_m']:>8.3f}{row['pressure_Pa']:>10.1f}{row['theory_Pa']:>15.1f}"
+            f"{100 * (row['pressure_Pa'] / row['theory_Pa'] - 1):>7.1f}%"
+        )
+    print(
+        f"{'device':<10}{'particles':>10}{'sub x it':>9}{'floor/W':>9}{'side/theory':>12}{'grad err':>9}{'p err max':>10}"
+        f"{'p err mean':>11}{'ghost floor':>12}{'mean|e|':>9}"
+    )
+    name = device.name if device.is_cuda else "cpu"
+    print(
+        f"{name:<10}{r['particles']:>10}{r['substeps']:>5} x {r['iterations']:<1}{1 + r['floor_force_error']:>9.4f}"
+        f"{1 + r['side_force_error']:>12.4f}{100 * r['pressure_gradient_error']:>8.1f}%"
+        f"{100 * r['pressure_error_max']:>9.1f}%{100 * r['pressure_error_mean']:>10.1f}%"
+        f"{r['floor_ghost_force_share']:>12.3f}{100 * r['mean_abs_density_error']:>8.2f}%"
+    )
+    return write_record("hydrostatic_pressure", device, r, args.json)
+
+
+if __name__ == "__main__":
+    main()
