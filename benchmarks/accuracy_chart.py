@@ -74,7 +74,7 @@ def plot(rows: list[dict], path: str, title: str) -> None:
         ("sloshing", "period_error", "standing wave: |period error|", True),
         ("sloshing", "amplitude_kept_per_period", "standing wave: 1 - amplitude kept per period", False),
         ("torricelli", "jet_speed_error", "Torricelli: |jet speed error|", True),
-        ("pressure", "pressure_error_max", "hydrostatic: largest layer's |pressure error|", True),
+        ("pressure", "floor_force_error", "hydrostatic: |floor force error|", True),
     ]
     panels = [panel for panel in panels if any(r["problem"] == panel[0] for r in rows)]
     fig, axes = plt.subplots(1, len(panels), figsize=(5 * len(panels), 4.2), squeeze=False)

@@ -79,6 +79,36 @@ def test_surge_front_matches_experiment(test, device):
     test.assertGreater(z[-1], 3.0)
 
 
+def test_converged_surge_front_within_bound(test, device):
+    # The surge front is a reported figure, not a target (issue #27): with 4 iterations it has converged
+    # (20 / 30 / 40 per L within 1.2 % of each other) and runs ahead of the experiment: here (20 per L, 4
+    # particles deep, CPU) by up to 16.3 % (18.6 % 6 deep), the gate's lift and the floor's boundary layer
+    # being what the model leaves out (docs/validation.md). The bound it is held to: every point within 20 %.
+    if not BENCHMARK.is_file():
+        test.skipTest("benchmarks/ is part of the source checkout, not of the installed wheel")
+    bench = load_benchmark()
+    points = np.asarray(json.loads(bench.DATA.read_text())["points"])
+    args = argparse.Namespace(
+        depth=4,
+        substeps=8,
+        iterations=4,
+        cohesion=0.0,
+        viscosity=0.0,
+        speed_clamp=0.0,
+        floor_friction=0.0,
+        settle=0.0,
+    )
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = bench.run(20, args, points, device)
+    for w in caught:
+        test.assertRegex(str(w.message), "past 10 % compression")
+    error = np.asarray(result["relative_error"])
+    test.assertLess(np.abs(error).max(), 0.20, error)
+    # it runs ahead (the lead the bound allows), not behind
+    test.assertGreater(error[-3:].min(), 0.0, error)
+
+
 def test_settled_column_stays_at_rest(test, device):
     # 6 x 6 x 10 particles in a walled tank, 8 substeps x 2 iterations, viscosity 0.05: after 8 s of settling
     # the mean displacement over the next 5 s. Measured 0.041 spacings (CPU, the default stable step and
@@ -170,6 +200,12 @@ add_function_test(
     TestFluidValidation,
     "test_surge_front_matches_experiment",
     test_surge_front_matches_experiment,
+    devices=get_test_devices(),
+)
+add_function_test(
+    TestFluidValidation,
+    "test_converged_surge_front_within_bound",
+    test_converged_surge_front_within_bound,
     devices=get_test_devices(),
 )
 add_function_test(
