@@ -43,3 +43,34 @@ class Frames:
                 self._substeps()
             self.graph = capture.graph
         wp.capture_launch(self.graph)
+
+
+def add_solver_arguments(parser, warm_start: float = 0.0, warm_start_help: str = "fluid_warm_start") -> None:
+    """The arguments every exact-answer benchmark takes for the solver, the device and its JSON record."""
+    parser.add_argument("--substeps", type=int, default=8)
+    parser.add_argument("--iterations", type=int, default=2)
+    parser.add_argument("--viscosity", type=float, default=0.0, help="fluid_viscosity")
+    parser.add_argument(
+        "--nonaffine-damping", type=float, default=None, help="fluid_nonaffine_damping (default: the solver's)"
+    )
+    parser.add_argument("--warm-start", type=float, default=warm_start, help=warm_start_help)
+    parser.add_argument(
+        "--smoothing-ratio", type=float, default=None, help="fluid_smoothing_length / spacing (default: the solver's)"
+    )
+    parser.add_argument("--device", default=None)
+    parser.add_argument("--json", default=None)
+
+
+def solver_keywords(args, spacing: float, damping: bool = True) -> dict:
+    """``SolverXPBD`` keywords from :func:`add_solver_arguments`' arguments (``damping``: pass the damping too)."""
+    keywords = {
+        "iterations": args.iterations,
+        "fluid_rest_distance": spacing,
+        "fluid_viscosity": args.viscosity,
+        "fluid_warm_start": args.warm_start,
+    }
+    if args.smoothing_ratio is not None:
+        keywords["fluid_smoothing_length"] = args.smoothing_ratio * spacing
+    if damping and args.nonaffine_damping is not None:
+        keywords["fluid_nonaffine_damping"] = args.nonaffine_damping
+    return keywords

@@ -36,7 +36,7 @@ import time
 
 import numpy as np
 import warp as wp
-from frames import Frames
+from frames import Frames, add_solver_arguments, solver_keywords
 from rest_column import GRAVITY, SPACING, build
 from run_record import write_record
 
@@ -69,9 +69,7 @@ def wall_gradient(solver, distance: np.ndarray) -> np.ndarray:
 def run(args, device) -> dict:
     d = SPACING
     model = build(args.n, args.layers, device)
-    solver = newton.solvers.SolverXPBD(
-        model, iterations=args.iterations, fluid_rest_distance=d, fluid_warm_start=args.warm_start
-    )
+    solver = newton.solvers.SolverXPBD(model, **solver_keywords(args, d, damping=False))
     damping = solver.fluid_nonaffine_damping if args.nonaffine_damping is None else args.nonaffine_damping
     pipeline = newton.CollisionPipeline(model, soft_contact_max=2 * model.particle_count, soft_contact_gap=0.5 * d)
     contacts = pipeline.contacts()
@@ -162,18 +160,11 @@ def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--n", type=int, default=8, help="particles along each side of the column")
     p.add_argument("--layers", type=int, default=16)
-    p.add_argument("--substeps", type=int, default=8)
-    p.add_argument("--iterations", type=int, default=2)
-    p.add_argument(
-        "--nonaffine-damping", type=float, default=None, help="fluid_nonaffine_damping (default: the solver's)"
-    )
-    p.add_argument("--warm-start", type=float, default=1e-6, help="fluid_warm_start (the multipliers are read from it)")
     p.add_argument("--settle", type=float, default=2.0, help="[s]")
     p.add_argument("--settle-damping", type=float, default=1.0, help="fluid_nonaffine_damping while settling")
     p.add_argument("--relax", type=float, default=1.0, help="[s] at the keywords under test before measuring")
     p.add_argument("--measure", type=float, default=1.0, help="[s]")
-    p.add_argument("--device", default=None)
-    p.add_argument("--json", default=None)
+    add_solver_arguments(p, warm_start=1e-6, warm_start_help="fluid_warm_start (the multipliers are read from it)")
     return p
 
 

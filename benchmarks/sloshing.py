@@ -32,7 +32,7 @@ import time
 
 import numpy as np
 import warp as wp
-from frames import Frames
+from frames import Frames, add_solver_arguments, solver_keywords
 from run_record import write_record
 
 import newton
@@ -143,14 +143,7 @@ def run(args, device) -> dict:
     length = args.length
     model, d = build(length, args.per_length, args.ratio, args.depth_particles, device)
     layers = max(1, round(args.ratio * args.per_length))
-    solver = newton.solvers.SolverXPBD(
-        model,
-        iterations=args.iterations,
-        fluid_rest_distance=d,
-        fluid_viscosity=args.viscosity,
-        fluid_warm_start=args.warm_start,
-        fluid_smoothing_length=None if args.smoothing_ratio is None else args.smoothing_ratio * d,
-    )
+    solver = newton.solvers.SolverXPBD(model, **solver_keywords(args, d, damping=False))
     damping = solver.fluid_nonaffine_damping if args.nonaffine_damping is None else args.nonaffine_damping
     pipeline = newton.CollisionPipeline(model, soft_contact_max=4 * model.particle_count, soft_contact_gap=0.5 * d)
     contacts = pipeline.contacts()
@@ -227,18 +220,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--periods", type=int, default=10)
     p.add_argument("--settle", type=float, default=2.0, help="[s]")
     p.add_argument("--settle-damping", type=float, default=1.0, help="fluid_nonaffine_damping while settling")
-    p.add_argument("--substeps", type=int, default=8)
-    p.add_argument("--iterations", type=int, default=2)
-    p.add_argument("--viscosity", type=float, default=0.0)
-    p.add_argument(
-        "--nonaffine-damping", type=float, default=None, help="fluid_nonaffine_damping (default: the solver's)"
-    )
-    p.add_argument("--warm-start", type=float, default=0.0, help="fluid_warm_start")
-    p.add_argument(
-        "--smoothing-ratio", type=float, default=None, help="fluid_smoothing_length / spacing (default: the solver's)"
-    )
-    p.add_argument("--device", default=None)
-    p.add_argument("--json", default=None)
+    add_solver_arguments(p)
     return p
 
 

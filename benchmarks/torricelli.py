@@ -28,7 +28,7 @@ import time
 
 import numpy as np
 import warp as wp
-from frames import Frames
+from frames import Frames, add_solver_arguments, solver_keywords
 from run_record import write_record
 
 import newton
@@ -91,15 +91,7 @@ def build(args, device):
 
 def run(args, device) -> dict:
     model, d, hole = build(args, device)
-    solver = newton.solvers.SolverXPBD(
-        model,
-        iterations=args.iterations,
-        fluid_rest_distance=d,
-        fluid_viscosity=args.viscosity,
-        fluid_warm_start=args.warm_start,
-        fluid_smoothing_length=None if args.smoothing_ratio is None else args.smoothing_ratio * d,
-        **({} if args.nonaffine_damping is None else {"fluid_nonaffine_damping": args.nonaffine_damping}),
-    )
+    solver = newton.solvers.SolverXPBD(model, **solver_keywords(args, d))
     pipeline = newton.CollisionPipeline(model, soft_contact_max=6 * model.particle_count, soft_contact_gap=0.5 * d)
     contacts = pipeline.contacts()
     states = [model.state(), model.state()]
@@ -203,18 +195,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--fall", type=float, default=0.2, help="drop below the hole's centre where the range is read [m]")
     p.add_argument("--seconds", type=float, default=1.5, help="[s]")
     p.add_argument("--skip", type=float, default=0.25, help="set-up time left out of the comparison [s]")
-    p.add_argument("--substeps", type=int, default=8)
-    p.add_argument("--iterations", type=int, default=2)
-    p.add_argument("--viscosity", type=float, default=0.0)
-    p.add_argument(
-        "--nonaffine-damping", type=float, default=None, help="fluid_nonaffine_damping (default: the solver's)"
-    )
-    p.add_argument("--warm-start", type=float, default=0.0, help="fluid_warm_start")
-    p.add_argument(
-        "--smoothing-ratio", type=float, default=None, help="fluid_smoothing_length / spacing (default: the solver's)"
-    )
-    p.add_argument("--device", default=None)
-    p.add_argument("--json", default=None)
+    add_solver_arguments(p)
     return p
 
 
