@@ -58,7 +58,7 @@ def add_slice_box(builder: newton.ModelBuilder, length: float, width: float, hei
         builder.add_shape_box(-1, xform=xform, hx=extent[0], hy=extent[1], hz=extent[2], cfg=cfg)
 
 
-def build(length: float, per_length: int, ratio: float, depth_particles: int, device):
+def build(length: float, per_length: int, ratio: float, depth_particles: int, device, jitter: float = 0.0):
     """The water slice on the rest lattice and its closed tank; returns the model and the spacing [m]."""
     d = length / per_length
     layers = max(1, round(ratio * per_length))
@@ -74,7 +74,7 @@ def build(length: float, per_length: int, ratio: float, depth_particles: int, de
         cell_y=d,
         cell_z=d,
         mass=1000.0 * d**3,
-        jitter=0.0,
+        jitter=jitter * d,
         radius_mean=0.5 * d,
         flags=int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID),
     )
@@ -141,7 +141,7 @@ def analyse(t: np.ndarray, s: np.ndarray, periods: int, floor: float = 0.1) -> d
 
 def run(args, device) -> dict:
     length = args.length
-    model, d = build(length, args.per_length, args.ratio, args.depth_particles, device)
+    model, d = build(length, args.per_length, args.ratio, args.depth_particles, device, args.jitter)
     layers = max(1, round(args.ratio * args.per_length))
     solver = newton.solvers.SolverXPBD(model, **solver_keywords(args, d, damping=False))
     damping = solver.fluid_nonaffine_damping if args.nonaffine_damping is None else args.nonaffine_damping
@@ -177,6 +177,13 @@ def run(args, device) -> dict:
         s.append(float(states[0].particle_q.numpy()[:, 0].astype(np.float64).mean()) - x_rest)
     wall = time.perf_counter() - start
     t, s = np.asarray(t), np.asarray(s)
+    control = None
+    if args.control and args.amplitude > 0.0:
+        # the same tank without the wave: its own drift of the centre of mass, taken out of the signal
+        # (bitwise the same run on the CPU; on a GPU the contacts' sums reorder and it is approximate)
+        quiet = argparse.Namespace(**{**vars(args), "amplitude": 0.0, "control": False, "json": None})
+        control = run(quiet, device)
+        s = s - np.interp(t, control["signal_t_s"], control["signal_m"])
     result = analyse(t, s, args.periods)
     stats = solver.fluid_diagnostics(states[0])
     return {
@@ -187,6 +194,7 @@ def run(args, device) -> dict:
         "depth_m": level,
         "layers": layers,
         "depth_particles": args.depth_particles,
+        "jitter_spacings": args.jitter,
         "amplitude_m": amplitude,
         "substeps": args.substeps,
         "iterations": args.iterations,
@@ -205,6 +213,7 @@ def run(args, device) -> dict:
         "max_compression": stats["max_compression"],
         "ms_per_frame": 1000.0 * simulated / frames,
         "wall_s": wall,
+        "control_largest_drift_m": None if control is None else float(np.abs(control["signal_m"]).max()),
         "signal_t_s": t[:: max(1, len(t) // 400)].tolist(),
         "signal_m": s[:: max(1, len(s) // 400)].tolist(),
     }
@@ -220,6 +229,10 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--periods", type=int, default=10)
     p.add_argument("--settle", type=float, default=2.0, help="[s]")
     p.add_argument("--settle-damping", type=float, default=1.0, help="fluid_nonaffine_damping while settling")
+    p.add_argument("--jitter", type=float, default=0.0, help="random offset of the start lattice [spacings]")
+    p.add_argument(
+        "--control", action="store_true", help="subtract the centre-of-mass drift of the same tank without the wave"
+    )
     add_solver_arguments(p)
     return p
 

@@ -81,8 +81,9 @@ def test_stable_step_follows_the_pass_count(test, device):
     test.assertAlmostEqual(relaxation(iterations=2, fluid_max_iterations=4), relaxation(iterations=3))
 
 
-def velocity_pass(device, velocity, damping, viscosity=0.0):
-    """One velocity pass of an 8 x 8 x 8 block (jittered) whose particles move with ``velocity(x)``; returns (x, v before, v after)."""
+def velocity_pass(device, velocity, damping, viscosity=0.0, steps=1.0):
+    """One velocity pass (a substep of ``steps`` damping reference steps) of an 8 x 8 x 8 block (jittered) whose
+    particles move with ``velocity(x)``; returns (x, v before, v after)."""
     model = make_model(device, lambda b: add_block(b, (8, 8, 8), jitter=0.2 * D))
     sim = Sim(model, fluid_nonaffine_damping=damping, fluid_viscosity=viscosity)
     fluid = sim.solver._fluid
@@ -98,7 +99,7 @@ def velocity_pass(device, velocity, damping, viscosity=0.0):
     wp.launch(
         apply_fluid_viscosity,
         dim=fluid.fluid_count,
-        inputs=[fluid.params, fluid.search.slots, fluid.sorted_v, fluid.density],
+        inputs=[fluid.params, fluid.search.slots, fluid.sorted_v, fluid.density, steps],
         outputs=[sim.state_0.particle_qd, fluid.vorticity],
         device=device,
     )
@@ -116,6 +117,18 @@ def test_nonaffine_damping_keeps_affine_motion(test, device):
     # Shepard viscosity of the same strength does not: it pulls the edges toward their inner neighbours
     _, _, blended = velocity_pass(device, lambda x: v0 + (x - x.mean(axis=0)) @ grad.T, 0.0, viscosity=1.0)
     test.assertGreater(np.abs(blended - v).max(), 20.0 * np.abs(after - v).max())
+
+
+def test_nonaffine_damping_follows_the_substep(test, device):
+    # a substep of two reference steps removes what two substeps of one would: 1 - (1 - 0.5)^2 = 0.75
+    rng = np.random.default_rng(5)
+    noise = rng.normal(0.0, 0.1, size=(512, 3))
+    _, v, once = velocity_pass(device, lambda x: noise, 0.5)
+    _, _, twice = velocity_pass(device, lambda x: noise, 0.5, steps=2.0)
+    _, _, half = velocity_pass(device, lambda x: noise, 0.5, steps=0.5)
+    removed_once = np.linalg.norm(v - once)
+    test.assertAlmostEqual(np.linalg.norm(v - twice) / removed_once, 0.75 / 0.5, places=3)
+    test.assertAlmostEqual(np.linalg.norm(v - half) / removed_once, (1.0 - 0.5**0.5) / 0.5, places=3)
 
 
 def test_nonaffine_damping_removes_particle_noise(test, device):

@@ -78,7 +78,7 @@ class FluidParams:
     cohesion_gate: float  # under-density (1 - rho/rho0) of a pair at which its cohesion is full
     viscosity: float  # [0, 1]
     nonaffine_damping: (
-        float  # share of a velocity's deviation from the kernel-scale affine field removed per substep [0, 1]
+        float  # share of a velocity's deviation from the kernel-scale affine field removed per 1/480 s [0, 1]
     )
     affine_regularizer: float  # added to the neighbourhood's position covariance of the affine fit [m^2]
     vorticity: float  # confinement strength [m/s]
@@ -742,6 +742,7 @@ def apply_fluid_viscosity(
     slots: FluidSlots,
     sorted_v: wp.array[wp.vec3],
     density: wp.array[float],
+    damping_steps: float,
     # outputs
     particle_qd: wp.array[wp.vec3],
     vorticity: wp.array[wp.vec3],
@@ -752,7 +753,9 @@ def apply_fluid_viscosity(
     velocity: ``v_i <- v_i + nu (sum_j V_j W_ij v_j / sum_j V_j W_ij - v_i)`` with ``V_j = m_j / rho_j``,
     the sums including ``j = i``. The non-affine damping removes the share ``beta`` of the velocity's
     deviation from the affine field fitted to the neighbourhood with the same weights
-    (:func:`affine_velocity_at_particle`): ``v_i <- v_i + beta (v_aff(x_i) - v_i)``. Motion the kernel
+    (:func:`affine_velocity_at_particle`): ``v_i <- v_i + beta (v_aff(x_i) - v_i)``, where a substep of
+    ``damping_steps`` reference steps (``NONAFFINE_DAMPING_STEP``) takes ``beta = 1 - (1 - damping)^steps``:
+    the damping per second does not depend on the substep count. Motion the kernel
     resolves (translation, rotation, shear, expansion across ``h``) is left alone; what goes is the
     particle-scale jitter no smooth field carries. Both act on the velocities of the step's result.
     With vorticity confinement on, the same loop also estimates the vorticity
@@ -802,7 +805,11 @@ def apply_fluid_viscosity(
     if p.viscosity > 0.0:
         v += (num / den - vi) * p.viscosity
     if fit_affine:
-        v += (affine_velocity_at_particle(den, sx, num, sxx, svx, p) - vi) * p.nonaffine_damping
+        # (exact at the reference step, where fast math's power would round)
+        beta = p.nonaffine_damping
+        if damping_steps != 1.0:
+            beta = 1.0 - wp.pow(1.0 - beta, damping_steps)
+        v += (affine_velocity_at_particle(den, sx, num, sxx, svx, p) - vi) * beta
     if p.viscosity > 0.0 or fit_affine:
         particle_qd[pi] = v
     if compute_vorticity:

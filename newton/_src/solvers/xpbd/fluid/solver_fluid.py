@@ -61,8 +61,12 @@ from .reset import reset_diffuse_worlds, reset_fluid_worlds
 
 # smoothing length h = DEFAULT_SMOOTHING_RATIO * rest distance unless given
 DEFAULT_SMOOTHING_RATIO = 1.8
-# share of the particle-scale (non-affine) velocity removed per substep unless given (docs/validation.md, "Still water")
+# share of the particle-scale (non-affine) velocity removed per NONAFFINE_DAMPING_STEP unless given (docs/validation.md,
+# "Still water")
 DEFAULT_NONAFFINE_DAMPING = 0.1
+# the time over which fluid_nonaffine_damping removes its share [s]: one substep of 8 at 60 Hz; a substep
+# of dt removes 1 - (1 - share)^(dt / step), so the damping per second does not follow the substep count
+NONAFFINE_DAMPING_STEP = 1.0 / 480.0
 # share of the stable step (stable_pass_bound) the default relaxation takes on the rest lattice
 JACOBI_STEP_MARGIN = 0.875
 # regulariser of the affine fit's position covariance, relative to the rest distance squared
@@ -869,11 +873,11 @@ class FluidSolver:
             )
         self._warm_stored = False
         if self.device.is_capturing:
-            self._velocity_pass(state_out)
+            self._velocity_pass(state_out, dt)
             self._vorticity_pass(state_out, dt)
         else:
             if c.fluid_viscosity > 0.0 or c.fluid_nonaffine_damping > 0.0 or c.fluid_vorticity > 0.0:
-                self._velocity_pass(state_out)
+                self._velocity_pass(state_out, dt)
             if c.fluid_vorticity > 0.0:
                 self._vorticity_pass(state_out, dt)
             else:
@@ -938,8 +942,8 @@ class FluidSolver:
             device=self.device,
         )
 
-    def _velocity_pass(self, state_out) -> None:
-        """Viscosity, and the vorticity estimate when confinement is on (one neighbour loop)."""
+    def _velocity_pass(self, state_out, dt: float) -> None:
+        """Viscosity, the non-affine damping of a substep of ``dt`` and the vorticity estimate (one neighbour loop)."""
         m, n = self.model, self.fluid_count
         if not self._velocities_applied:
             wp.launch(
@@ -952,7 +956,7 @@ class FluidSolver:
         wp.launch(
             apply_fluid_viscosity,
             dim=n,
-            inputs=[self.params, self.slots, self.sorted_v, self.density],
+            inputs=[self.params, self.slots, self.sorted_v, self.density, dt / NONAFFINE_DAMPING_STEP],
             outputs=[state_out.particle_qd, self.vorticity],
             device=self.device,
         )
