@@ -74,3 +74,11 @@ def solver_keywords(args, spacing: float, damping: bool = True) -> dict:
     if damping and args.nonaffine_damping is not None:
         keywords["fluid_nonaffine_damping"] = args.nonaffine_damping
     return keywords
+
+
+def run_on_device(run, args):
+    """``run(args, device)`` on ``args.device`` with Warp's messages off; returns the device and its result."""
+    wp.config.quiet = True
+    device = wp.get_device(args.device)
+    with wp.ScopedDevice(device):
+        return device, run(args, device)

@@ -36,7 +36,7 @@ import time
 
 import numpy as np
 import warp as wp
-from frames import Frames, add_solver_arguments, solver_keywords
+from frames import Frames, add_solver_arguments, run_on_device, solver_keywords
 from rest_column import GRAVITY, SPACING, build
 from run_record import write_record
 
@@ -170,10 +170,7 @@ def parser() -> argparse.ArgumentParser:
 
 def main(argv=None):
     args = parser().parse_args(argv)
-    wp.config.quiet = True
-    device = wp.get_device(args.device)
-    with wp.ScopedDevice(device):
-        r = run(args, device)
+    device, r = run_on_device(run, args)
     print(f"{'layer':>6}{'z [m]':>8}{'p [Pa]':>10}{'rho g (H - z)':>15}{'error':>8}")
     for row in r["pressure_rows"]:
         print(

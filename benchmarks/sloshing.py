@@ -32,7 +32,7 @@ import time
 
 import numpy as np
 import warp as wp
-from frames import Frames, add_solver_arguments, solver_keywords
+from frames import Frames, add_solver_arguments, run_on_device, solver_keywords
 from run_record import write_record
 
 import newton
@@ -239,10 +239,7 @@ def parser() -> argparse.ArgumentParser:
 
 def main(argv=None):
     args = parser().parse_args(argv)
-    wp.config.quiet = True
-    device = wp.get_device(args.device)
-    with wp.ScopedDevice(device):
-        r = run(args, device)
+    device, r = run_on_device(run, args)
     print(
         f"{'device':<10}{'particles':>10}{'N/L':>5}{'h/L':>5}{'sub x it':>9}{'damping':>8}{'T theory':>9}"
         f"{'T':>8}{'err':>7}{'kept/T':>8}{'mean|e|':>8}"

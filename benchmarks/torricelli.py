@@ -28,7 +28,7 @@ import time
 
 import numpy as np
 import warp as wp
-from frames import Frames, add_solver_arguments, solver_keywords
+from frames import Frames, add_solver_arguments, run_on_device, solver_keywords
 from run_record import write_record
 
 import newton
@@ -201,10 +201,7 @@ def parser() -> argparse.ArgumentParser:
 
 def main(argv=None):
     args = parser().parse_args(argv)
-    wp.config.quiet = True
-    device = wp.get_device(args.device)
-    with wp.ScopedDevice(device):
-        r = run(args, device)
+    device, r = run_on_device(run, args)
     print(
         f"{'device':<10}{'particles':>10}{'hole':>6}{'sub x it':>9}{'v/v_T':>7}{'min':>7}{'max':>7}"
         f"{'angle':>7}{'fall/T':>8}{'p10':>7}{'p90':>7}{'mean|e|':>8}"
