@@ -28,7 +28,7 @@ from run_record import write_record
 
 import newton
 from newton._src.solvers.xpbd.fluid.solver_fluid import DEFAULT_NONAFFINE_DAMPING
-from newton.examples.fluid.common import add_closed_box
+from newton.examples.fluid.common import add_closed_box, add_water_lattice
 from newton.examples.fluid.progress import track
 
 SPACING = 0.05  # [m]
@@ -39,21 +39,7 @@ def build(n: int, layers: int, device):
     """The column and its closed box; returns the model."""
     d = SPACING
     builder = newton.ModelBuilder(gravity=(0.0, 0.0, -GRAVITY))
-    builder.add_particle_grid(
-        pos=wp.vec3(0.5 * d, 0.5 * d, 0.5 * d),
-        rot=wp.quat_identity(),
-        vel=wp.vec3(0.0),
-        dim_x=n,
-        dim_y=n,
-        dim_z=layers,
-        cell_x=d,
-        cell_y=d,
-        cell_z=d,
-        mass=1000.0 * d**3,
-        jitter=0.0,
-        radius_mean=0.5 * d,
-        flags=int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID),
-    )
+    add_water_lattice(builder, d, (n, n, layers))
     add_closed_box(builder, n * d, 1.5 * layers * d)
     model = builder.finalize(device=device)
     model.soft_contact_mu = 0.0

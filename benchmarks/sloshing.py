@@ -36,26 +36,10 @@ from frames import Frames, add_solver_arguments, run_on_device, solver_keywords
 from run_record import write_record
 
 import newton
+from newton.examples.fluid.common import add_closed_box, add_water_lattice
 from newton.examples.fluid.progress import track
 
 GRAVITY = 9.81  # [m/s^2]
-
-
-def add_slice_box(builder: newton.ModelBuilder, length: float, width: float, height: float) -> None:
-    """Six frictionless walls closing ``[0, length] x [0, width] x [0, height]`` [m]; each reaches past the others."""
-    t = 0.1
-    cfg = newton.ModelBuilder.ShapeConfig(mu=0.0)
-    hx, hy, hz = 0.5 * length, 0.5 * width, 0.5 * height
-    for center, extent in (
-        ((hx, hy, -t), (hx + 2 * t, hy + 2 * t, t)),
-        ((hx, hy, height + t), (hx + 2 * t, hy + 2 * t, t)),
-        ((-t, hy, hz), (t, hy + 2 * t, hz + 2 * t)),
-        ((length + t, hy, hz), (t, hy + 2 * t, hz + 2 * t)),
-        ((hx, -t, hz), (hx + 2 * t, t, hz + 2 * t)),
-        ((hx, width + t, hz), (hx + 2 * t, t, hz + 2 * t)),
-    ):
-        xform = wp.transform(wp.vec3(*center), wp.quat_identity())
-        builder.add_shape_box(-1, xform=xform, hx=extent[0], hy=extent[1], hz=extent[2], cfg=cfg)
 
 
 def build(length: float, per_length: int, ratio: float, depth_particles: int, device, jitter: float = 0.0):
@@ -63,22 +47,8 @@ def build(length: float, per_length: int, ratio: float, depth_particles: int, de
     d = length / per_length
     layers = max(1, round(ratio * per_length))
     builder = newton.ModelBuilder(gravity=(0.0, 0.0, -GRAVITY))
-    builder.add_particle_grid(
-        pos=wp.vec3(0.5 * d, 0.5 * d, 0.5 * d),
-        rot=wp.quat_identity(),
-        vel=wp.vec3(0.0),
-        dim_x=per_length,
-        dim_y=depth_particles,
-        dim_z=layers,
-        cell_x=d,
-        cell_y=d,
-        cell_z=d,
-        mass=1000.0 * d**3,
-        jitter=jitter * d,
-        radius_mean=0.5 * d,
-        flags=int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID),
-    )
-    add_slice_box(builder, length, depth_particles * d, 3.0 * layers * d)
+    add_water_lattice(builder, d, (per_length, depth_particles, layers), jitter=jitter * d)
+    add_closed_box(builder, length, 3.0 * layers * d, width=depth_particles * d)
     model = builder.finalize(device=device)
     model.soft_contact_mu = 0.0
     return model, d

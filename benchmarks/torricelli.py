@@ -32,6 +32,7 @@ from frames import Frames, add_solver_arguments, run_on_device, solver_keywords
 from run_record import write_record
 
 import newton
+from newton.examples.fluid.common import add_water_lattice
 from newton.examples.fluid.progress import track
 
 GRAVITY = 9.81  # [m/s^2]
@@ -50,21 +51,7 @@ def build(args, device):
     nx, ny, nz = round(args.length / d), round(args.width / d), round(args.height / d)
     length, width = nx * d, ny * d
     builder = newton.ModelBuilder(gravity=(0.0, 0.0, -GRAVITY))
-    builder.add_particle_grid(
-        pos=wp.vec3(0.5 * d, 0.5 * d, 0.5 * d),
-        rot=wp.quat_identity(),
-        vel=wp.vec3(0.0),
-        dim_x=nx,
-        dim_y=ny,
-        dim_z=nz,
-        cell_x=d,
-        cell_y=d,
-        cell_z=d,
-        mass=1000.0 * d**3,
-        jitter=0.0,
-        radius_mean=0.5 * d,
-        flags=int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID),
-    )
+    add_water_lattice(builder, d, (nx, ny, nz))
     cfg = newton.ModelBuilder.ShapeConfig(mu=0.0)
     t, top = 0.1, 1.5 * nz * d
     wall = d  # the holed wall: thin, so the hole is an orifice, not a pipe

@@ -35,6 +35,7 @@ from run_record import machine_record
 
 import newton
 from newton._src.solvers.xpbd.fluid.solver_fluid import DEFAULT_NONAFFINE_DAMPING
+from newton.examples.fluid.common import add_water_lattice
 from newton.examples.fluid.progress import track
 
 DATA = Path(__file__).resolve().parent / "data" / "dam_break_koshizuka_oka_1996.json"
@@ -70,21 +71,7 @@ def build(
     """
     d = L / per_l
     builder = newton.ModelBuilder()
-    builder.add_particle_grid(
-        pos=wp.vec3(0.5 * d, 0.5 * d, 0.5 * d),
-        rot=wp.quat_identity(),
-        vel=wp.vec3(0.0),
-        dim_x=per_l,
-        dim_y=depth_layers,
-        dim_z=2 * per_l,
-        cell_x=d,
-        cell_y=d,
-        cell_z=d,
-        mass=1000.0 * d**3,
-        jitter=0.0,
-        radius_mean=0.5 * d,
-        flags=int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID),
-    )
+    add_water_lattice(builder, d, (per_l, depth_layers, 2 * per_l))
     cfg = newton.ModelBuilder.ShapeConfig(mu=0.0)
     # XPBD's particle-shape friction is the mean of model.soft_contact_mu (0 below) and the shape's mu:
     # the floor's 2 f gives the floor friction f, the walls' 0 frictionless walls

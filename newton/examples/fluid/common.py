@@ -15,24 +15,54 @@ from newton.examples.fluid.capture import add_capture_arguments
 WATER = {"color": (0.2, 0.45, 0.9, 0.3), "absorption": (4.0, 1.2, 0.5)}
 
 
-def add_closed_box(builder: newton.ModelBuilder, edge: float, height: float, thickness: float = 0.1) -> None:
-    """Six frictionless walls closing ``[0, edge] x [0, edge] x [0, height]`` [m] (floor and lid included).
+def add_closed_box(
+    builder: newton.ModelBuilder, edge: float, height: float, thickness: float = 0.1, width: float | None = None
+) -> None:
+    """Six frictionless walls closing ``[0, edge] x [0, width] x [0, height]`` [m] (floor and lid included).
 
-    Each wall reaches over the ones it meets to their outer faces, so no joint opens between them
-    (see :func:`add_tank`). The still-water column of ``benchmarks/rest_column.py`` stands in it.
+    ``width`` defaults to ``edge`` (a square floor). Each wall reaches over the ones it meets to their
+    outer faces, so no joint opens between them (see :func:`add_tank`). The still-water column of
+    ``benchmarks/rest_column.py`` and the tank of ``benchmarks/sloshing.py`` stand in it.
     """
-    t, half, mid = thickness, 0.5 * edge, 0.5 * height
+    width = edge if width is None else width
+    t, hx, hy, mid = thickness, 0.5 * edge, 0.5 * width, 0.5 * height
     cfg = newton.ModelBuilder.ShapeConfig(mu=0.0)
     for center, extent in (
-        ((half, half, -t), (half + 2 * t, half + 2 * t, t)),
-        ((half, half, height + t), (half + 2 * t, half + 2 * t, t)),
-        ((-t, half, mid), (t, half + 2 * t, mid + 2 * t)),
-        ((edge + t, half, mid), (t, half + 2 * t, mid + 2 * t)),
-        ((half, -t, mid), (half + 2 * t, t, mid + 2 * t)),
-        ((half, edge + t, mid), (half + 2 * t, t, mid + 2 * t)),
+        ((hx, hy, -t), (hx + 2 * t, hy + 2 * t, t)),
+        ((hx, hy, height + t), (hx + 2 * t, hy + 2 * t, t)),
+        ((-t, hy, mid), (t, hy + 2 * t, mid + 2 * t)),
+        ((edge + t, hy, mid), (t, hy + 2 * t, mid + 2 * t)),
+        ((hx, -t, mid), (hx + 2 * t, t, mid + 2 * t)),
+        ((hx, width + t, mid), (hx + 2 * t, t, mid + 2 * t)),
     ):
         xform = wp.transform(wp.vec3(*center), wp.quat_identity())
         builder.add_shape_box(-1, xform=xform, hx=extent[0], hy=extent[1], hz=extent[2], cfg=cfg)
+
+
+def add_water_lattice(
+    builder: newton.ModelBuilder, spacing: float, counts: tuple[int, int, int], jitter: float = 0.0
+) -> None:
+    """Fluid particles on the rest lattice filling ``[0, nx d] x [0, ny d] x [0, nz d]`` from the origin.
+
+    Spacing ``d`` [m], mass ``1000 d^3`` [kg] (water), radius ``d / 2``; ``jitter`` [m] is the width of
+    upstream's uniform random offset per coordinate (0: none).
+    """
+    d = spacing
+    builder.add_particle_grid(
+        pos=wp.vec3(0.5 * d, 0.5 * d, 0.5 * d),
+        rot=wp.quat_identity(),
+        vel=wp.vec3(0.0),
+        dim_x=counts[0],
+        dim_y=counts[1],
+        dim_z=counts[2],
+        cell_x=d,
+        cell_y=d,
+        cell_z=d,
+        mass=1000.0 * d**3,
+        jitter=jitter,
+        radius_mean=0.5 * d,
+        flags=int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID),
+    )
 
 
 def add_tank(
