@@ -32,6 +32,7 @@ from run_record import machine_record
 import newton
 from newton._src.solvers.xpbd.fluid import neighbors, solver_fluid
 from newton._src.solvers.xpbd.fluid.solver_fluid import DEFAULT_NONAFFINE_DAMPING, wall_density_tables
+from newton._src.solvers.xpbd.fluid.upstream import upstream_step_only
 from newton.examples.fluid.example_fluid_xpbd_dam_break import TANK_HALF_LENGTH, add_dam_break
 from newton.examples.fluid.progress import track
 
@@ -157,14 +158,11 @@ def pass_breakdown(solver, collision, states, contacts, substeps: int, iteration
 
     def upstream():
         # the same step without the fluid solve; particle contacts off as in the all-fluid step
-        model = solver.model
-        saved = (solver._fluid, model.particle_grid, model.particle_max_radius)
-        solver._fluid, model.particle_grid, model.particle_max_radius = None, None, 0.0
-        for _ in range(substeps):
-            collision.collide(states[0], contacts)
-            solver.step(states[0], states[1], None, contacts, dt)
-            states[0], states[1] = states[1], states[0]
-        solver._fluid, model.particle_grid, model.particle_max_radius = saved
+        with upstream_step_only(solver):
+            for _ in range(substeps):
+                collision.collide(states[0], contacts)
+                solver.step(states[0], states[1], None, contacts, dt)
+                states[0], states[1] = states[1], states[0]
 
     def neighbors():
         for _ in range(substeps):

@@ -142,7 +142,7 @@ def test_parameter_setters(test, device):
 
 
 def test_version_guard(test, device):
-    from newton._src.solvers.xpbd import fluid  # noqa: PLC0415
+    from newton._src.solvers.xpbd.fluid import upstream  # noqa: PLC0415
 
     solver_module = types.ModuleType("fake_solver_xpbd")
 
@@ -155,7 +155,13 @@ def test_version_guard(test, device):
     sys.modules["fake_solver_xpbd"] = solver_module
     try:
         with test.assertRaises(RuntimeError) as ctx:
-            fluid.check_upstream(types.SimpleNamespace(SolverXPBD=SolverXPBD))
+            upstream.check_names(types.SimpleNamespace(SolverXPBD=SolverXPBD))
+        # names present, but a contact kernel of another launch signature
+        SolverXPBD.__init__ = SolverXPBD.integrate_particles = SolverXPBD._apply_particle_deltas = lambda self: None
+        SolverXPBD.reset = lambda self: None
+        solver_module.solve_particle_particle_contacts = upstream.applied_particles
+        with test.assertRaisesRegex(RuntimeError, "solve_particle_particle_contacts takes"):
+            upstream.check_names(types.SimpleNamespace(SolverXPBD=SolverXPBD))
     finally:
         del sys.modules["fake_solver_xpbd"]
     message = str(ctx.exception)
@@ -164,7 +170,108 @@ def test_version_guard(test, device):
     test.assertIn("SolverXPBD._apply_particle_deltas", message)
     test.assertIn("solver_module.solve_particle_particle_contacts", message)
     # the installed upstream passes
-    fluid.check_upstream(sys.modules["newton._src.solvers.xpbd"])
+    upstream.check_names(sys.modules["newton._src.solvers.xpbd"])
+
+
+def test_upstream_behaviour_verified(test, device):
+    from newton._src.solvers.xpbd.fluid import upstream  # noqa: PLC0415
+
+    stock = dict(newton.solvers.SolverXPBD._fluid_stock)
+    fluid = int(newton.ParticleFlags.FLUID)
+    test.assertEqual(upstream.verify_behaviour(stock, device, fluid), [])
+
+    def halved(self, model, state_in, state_out, particle_deltas, dt):  # another delta formula
+        half = wp.empty_like(particle_deltas)
+        wp.launch(_halve, dim=len(half), inputs=[particle_deltas], outputs=[half], device=particle_deltas.device)
+        return stock["_apply_particle_deltas"](self, model, state_in, state_out, half, dt)
+
+    failures = upstream.verify_behaviour({**stock, "_apply_particle_deltas": halved}, device, fluid)
+    test.assertTrue(any("does not give x = x_pred + delta" in f for f in failures), failures)
+
+    def inverted(self, model, state_in, state_out, particle_deltas, dt):  # the counter kept the other way round
+        self._particle_delta_counter = 1 - self._particle_delta_counter
+        out = stock["_apply_particle_deltas"](self, model, state_in, state_out, particle_deltas, dt)
+        self._particle_delta_counter = 1 - self._particle_delta_counter
+        return out
+
+    failures = upstream.verify_behaviour({**stock, "_apply_particle_deltas": inverted}, device, fluid)
+    test.assertTrue(any("buffer" in f or "predicted positions" in f for f in failures), failures)
+
+
+@wp.kernel
+def _halve(x: wp.array[wp.vec3], y: wp.array[wp.vec3]):
+    i = wp.tid()
+    y[i] = 0.5 * x[i]
+
+
+def test_refuses_to_activate_on_mismatch(test, device):
+    # an upstream whose particle deltas are applied at half strength: the extension must refuse, and
+    # SolverXPBD must then step as stock
+    code = """
+import inspect, numpy as np, warp as wp
+import _newton_fluid_hook
+def break_then_activate(xpbd):
+    stock_apply = xpbd.SolverXPBD._apply_particle_deltas
+    def halved(self, model, state_in, state_out, particle_deltas, dt):
+        half = wp.array(0.5 * particle_deltas.numpy(), dtype=wp.vec3, device=particle_deltas.device)
+        return stock_apply(self, model, state_in, state_out, half, dt)
+    xpbd.SolverXPBD._apply_particle_deltas = halved
+    import newton._src.solvers.xpbd.fluid  # activates
+_newton_fluid_hook._ACTIVATORS["newton._src.solvers.xpbd"] = ("__main__", "break_then_activate")
+import newton
+from newton._src.solvers.xpbd import SolverXPBD
+halved = SolverXPBD._fluid_stock["_apply_particle_deltas"]
+print("active", "fluid_rest_distance" in inspect.signature(SolverXPBD).parameters)
+b = newton.ModelBuilder()
+for i in range(4):
+    b.add_particle((0.1 * i, 0, 1), (0, 0, 0), 1.0, radius=0.05, flags=int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID))
+try:
+    SolverXPBD(b.finalize(device="cpu"), fluid_rest_distance=0.1)
+    print("refused False")
+except RuntimeError as e:
+    print("refused", "supports newton 1.8.0" in str(e) and f"found newton {newton.__version__}" in str(e))
+    print("message", e)
+print("stock", "fluid_rest_distance" not in inspect.signature(SolverXPBD).parameters, SolverXPBD._apply_particle_deltas is halved)
+g = newton.ModelBuilder()
+g.add_particle((0, 0, 1), (0, 0, 0), 1.0, radius=0.1)
+g.add_particle((0.15, 0, 1), (0, 0, 0), 1.0, radius=0.1)
+m = g.finalize(device="cpu")
+s0, s1 = m.state(), m.state()
+SolverXPBD(m).step(s0, s1, None, None, 1.0 / 60.0)
+print("stepped", bool(np.all(np.isfinite(s1.particle_q.numpy()))))
+"""
+    out = run_python(code)
+    lines = dict(line.split(" ", 1) for line in out.stdout.splitlines() if " " in line)
+    test.assertEqual(lines.get("active"), "True", out.stdout + out.stderr)
+    test.assertEqual(lines.get("refused"), "True", out.stdout + out.stderr)
+    test.assertIn("_apply_particle_deltas", lines.get("message", ""))
+    test.assertEqual(lines.get("stock"), "True True", out.stdout + out.stderr)
+    test.assertEqual(lines.get("stepped"), "True", out.stdout + out.stderr)
+
+
+def test_upstream_privates_named_only_in_the_seam(test, device):
+    import re  # noqa: PLC0415
+
+    from newton._src.solvers.xpbd.fluid import upstream  # noqa: PLC0415
+    from newton._src.viewer.gl.fluid import upstream as viewer_upstream  # noqa: PLC0415
+
+    root = Path(upstream.__file__).resolve().parents[4]  # the newton/ package holding the extension's files
+    names = {e.name for e in upstream.SEAM if e.name not in ("__init__", "step", "reset")}
+    viewer_names = [n for names in viewer_upstream.CLASS_NAMES.values() for n in names]
+    viewer_names += [*viewer_upstream.RENDERER_NAMES, *viewer_upstream.FRAME_NAMES, *viewer_upstream.OTHER_PRIVATES]
+    names |= {n for n in viewer_names if n.startswith("_")}
+    pattern = re.compile(r"\b(" + "|".join(re.escape(n) for n in sorted(names)) + r")\b")
+    seams = {Path(upstream.__file__).resolve(), Path(viewer_upstream.__file__).resolve()}
+    files = [p for p in root.rglob("*.py") if "fluid" in p.name or "fluid" in p.parts]
+    test.assertGreater(len(files), 20)
+    found = []
+    for path in files:
+        if path.resolve() in seams or "tests" in path.parts:
+            continue
+        for number, line in enumerate(path.read_text().splitlines(), 1):
+            if pattern.search(line):
+                found.append(f"{path.name}:{number}: {line.strip()}")
+    test.assertEqual(found, [], "upstream privates named outside the two upstream.py modules")
 
 
 def test_disable_environment_variable(test, device):
@@ -387,6 +494,7 @@ for _name, _func in list(globals().items()):
             "test_bad_arguments_raise",
             "test_parameter_setters",
             "test_log_fluid_fallback",
+            "test_upstream_behaviour_verified",
         )
         # the web viewers print their addresses
         check_output = _name != "test_log_fluid_every_viewer"

@@ -325,8 +325,9 @@ def test_diffuse_sprites(test, device):
         scene.viewer.end_frame()
         image = scene.viewer.get_frame().numpy().astype(np.float64)
         origin, rays = scene.rays()
-        view = np.asarray(scene.viewer.renderer._view_matrix, np.float64).reshape(4, 4).T
-        proj = np.asarray(scene.viewer.renderer._projection_matrix, np.float64).reshape(4, 4).T
+        frame = scene.viewer.fluid_renderer.frame
+        view = np.asarray(frame.view_matrix, np.float64).reshape(4, 4).T
+        proj = np.asarray(frame.projection_matrix, np.float64).reshape(4, 4).T
 
         def pixel(p):
             clip = proj @ view @ np.append(p, 1.0)

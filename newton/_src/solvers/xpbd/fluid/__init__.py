@@ -1,82 +1,29 @@
 # SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
 # SPDX-License-Identifier: Apache-2.0
 
-"""Position-based fluids inside :class:`~newton.solvers.SolverXPBD`.
+"""Position-based fluids inside :class:`~newton.solvers.SolverXPBD`: what the extension adds to it.
 
-This module is the one place where the upstream solver is extended. :func:`activate` runs when
-``newton._src.solvers.xpbd`` is imported (through the startup hook, or when this module is
-imported directly) and adds to ``SolverXPBD``:
+:func:`activate` runs when ``newton._src.solvers.xpbd`` is imported (through the startup hook, or when
+this module is imported directly) and hands :mod:`.upstream`, the one module that touches upstream
+names, what to add to ``SolverXPBD``:
 
 - the ``fluid_*`` constructor keywords and matching properties;
-- a wrapped ``integrate_particles`` (build the fluid neighbourhood after prediction);
-- a wrapped ``_apply_particle_deltas`` (add the density correction once per iteration, after the
-  other particle constraints accumulated their Jacobi deltas);
-- a wrapped ``step`` (fluid-fluid pairs skipped by particle contacts, and after the step: viscosity,
-  vorticity confinement, non-finite recovery);
-- a wrapped ``reset`` (restore the fluid of the selected worlds and clear their carried solver state);
-- :meth:`fluid_diagnostics` and :meth:`update_render_particles`.
+- :meth:`reset` (restore the fluid of the selected worlds and clear their carried solver state);
+- :meth:`fluid_diagnostics` and :meth:`update_render_particles`, the render and diffuse arrays.
 
-Solvers whose model has no fluid particle take none of these paths.
+Solvers whose model has no fluid particle run upstream's step unchanged.
 """
 
 from __future__ import annotations
 
-import contextlib
-import functools
 import importlib
-import inspect
 
-from .kernels import solve_particle_particle_contacts_skip_fluid_pairs
+from . import upstream
 from .solver_fluid import FluidConfig, FluidSolver, find_fluid_particles
 
-SUPPORTED_NEWTON_VERSION = "1.8.0"
-
-# private upstream names this extension relies on: (owner, attribute)
-_UPSTREAM_NAMES = (
-    ("SolverXPBD", "_apply_particle_deltas"),
-    ("SolverXPBD", "integrate_particles"),
-    ("SolverXPBD", "step"),
-    ("SolverXPBD", "reset"),
-    ("solver_module", "solve_particle_particle_contacts"),
-)
+SUPPORTED_NEWTON_VERSION = upstream.SUPPORTED_NEWTON_VERSION
 
 _FLUID_KWARGS = {name: FluidConfig.__dataclass_fields__[name].default for name in FluidConfig.__dataclass_fields__}
-
-
-def check_upstream(xpbd_module) -> None:
-    """Raise ``RuntimeError`` unless every upstream name the extension patches exists.
-
-    Args:
-        xpbd_module: The ``newton._src.solvers.xpbd`` package.
-    """
-    import newton  # noqa: PLC0415
-
-    owners = {"SolverXPBD": xpbd_module.SolverXPBD, "solver_module": _solver_module(xpbd_module)}
-    missing = [f"{o}.{a}" for o, a in _UPSTREAM_NAMES if not hasattr(owners[o], a)]
-    if missing:
-        raise RuntimeError(
-            f"newton-fluid supports newton {SUPPORTED_NEWTON_VERSION}, found newton {newton.__version__}: "
-            f"upstream name(s) {', '.join(missing)} missing"
-        )
-
-
-def _solver_module(xpbd_module):
-    return importlib.import_module(xpbd_module.SolverXPBD.__module__)
-
-
-@contextlib.contextmanager
-def _fluid_particle_contacts(solver_module, model, fluid: FluidSolver):
-    """While a fluid solver steps: particle contacts skip fluid-fluid pairs, or are skipped when all particles are fluid."""
-    saved = (solver_module.solve_particle_particle_contacts, model.particle_grid, model.particle_max_radius)
-    solver_module.solve_particle_particle_contacts = solve_particle_particle_contacts_skip_fluid_pairs
-    if fluid.fluid_count == model.particle_count:
-        # no pair is left for the contact kernel: skip upstream's hash-grid build and query
-        model.particle_grid = None
-        model.particle_max_radius = 0.0
-    try:
-        yield
-    finally:
-        solver_module.solve_particle_particle_contacts, model.particle_grid, model.particle_max_radius = saved
 
 
 def _make_property(name: str, mutable: bool):
@@ -218,138 +165,95 @@ def update_render_particles(
     self._fluid.update_render_particles(state, smoothing, anisotropy_scale, anisotropy_min, anisotropy_max)
 
 
-def activate(xpbd_module) -> None:
-    """Extend ``xpbd_module.SolverXPBD`` (``newton._src.solvers.xpbd``) in place; idempotent."""
-    cls = xpbd_module.SolverXPBD
-    if getattr(cls, "_fluid_extension", False):
-        return
-    check_upstream(xpbd_module)
-    solver_module = _solver_module(xpbd_module)
-    upstream_init = cls.__init__
-    upstream_integrate = cls.integrate_particles
-    upstream_apply = cls._apply_particle_deltas
-    upstream_step = cls.step
-    upstream_reset = cls.reset
-
-    @functools.wraps(upstream_init)
-    def __init__(self, model, *args, **kwargs):
-        config = FluidConfig(**{k: kwargs.pop(k) for k in _FLUID_KWARGS if k in kwargs})
-        upstream_init(self, model, *args, **kwargs)
-        self._fluid_config = config
-        self._fluid = None
-        fluid_particle = find_fluid_particles(model)
-        if len(fluid_particle):
-            if config.fluid_rest_distance is None:
-                raise ValueError(
-                    f"fluid_rest_distance=None is invalid: the model has {len(fluid_particle)} fluid particles, "
-                    "expected a particle spacing in (0, inf) [m]"
-                )
-            self._fluid = FluidSolver(model, config, fluid_particle, self.iterations)
-
-    def integrate_particles(self, model, state_in, state_out, dt):
-        upstream_integrate(self, model, state_in, state_out, dt)
-        if self._fluid is not None:
-            self._fluid.build_neighborhood(
-                state_out.particle_q, state_in.particle_q, state_out.particle_qd, state_in.body_q
+def _make_fluid(solver, model, fluid_kwargs: dict, verify_upstream) -> None:
+    """After upstream's constructor: validate the keywords and, for a model with fluid, build its solve."""
+    config = FluidConfig(**fluid_kwargs)
+    solver._fluid_config = config
+    solver._fluid = None
+    fluid_particle = find_fluid_particles(model)
+    if len(fluid_particle):
+        if config.fluid_rest_distance is None:
+            raise ValueError(
+                f"fluid_rest_distance=None is invalid: the model has {len(fluid_particle)} fluid particles, "
+                "expected a particle spacing in (0, inf) [m]"
             )
+        verify_upstream()
+        solver._fluid = FluidSolver(model, config, fluid_particle, solver.iterations)
 
-    def _apply_particle_deltas(self, model, state_in, state_out, particle_deltas, dt):
-        if self._fluid is not None:
-            # the positions upstream applies the deltas to (it ping-pongs between the two states)
-            current = state_in.requires_grad or self._particle_delta_counter == 0
-            particle_q = state_out.particle_q if current else state_in.particle_q
-            # how upstream applies the deltas (apply_particle_deltas), so the fluid can write the
-            # result in its own order; velocities only where nothing changes them after the iterations
-            x_start = getattr(self, "particle_q_init", None)
-            apply = None
-            if x_start is not None and not state_in.requires_grad:
-                velocities = not getattr(self, "enable_restitution", True)
-                apply = (x_start, dt, model.particle_max_velocity, velocities)
-            self._fluid.solve_density(particle_q, particle_deltas, apply, self.iterations)
-        return upstream_apply(self, model, state_in, state_out, particle_deltas, dt)
 
-    @functools.wraps(upstream_step)
-    def step(self, state_in, state_out, control, contacts, dt, **kwargs):
-        if self._fluid is None:
-            return upstream_step(self, state_in, state_out, control, contacts, dt, **kwargs)
-        self._fluid.contacts = contacts
-        with _fluid_particle_contacts(solver_module, self.model, self._fluid):
-            upstream_step(self, state_in, state_out, control, contacts, dt, **kwargs)
-        self._fluid.finish_step(state_out, dt, getattr(self, "particle_q_init", None))
-
-    def _fluid_reset(self, state, world_mask, flags, fluid_source):
-        upstream_reset(self, state, world_mask, flags)
-        if self._fluid is None:
-            if fluid_source is not None:
-                raise ValueError("fluid_source is given, but the model has no fluid particles to restore")
-            return
-        from ....sim import StateFlags  # noqa: PLC0415
-
-        bits = int(StateFlags.PARTICLE_Q | StateFlags.PARTICLE_QD) if flags is None else int(flags)
-        restore_q, restore_qd = bool(bits & StateFlags.PARTICLE_Q), bool(bits & StateFlags.PARTICLE_QD)
-        if not (restore_q or restore_qd):
-            return
-        model = self.model
+def _reset_fluid(solver, state, world_mask, flags, fluid_source) -> None:
+    """After upstream's reset: restore the fluid of the selected worlds (see :func:`reset`)."""
+    if solver._fluid is None:
         if fluid_source is not None:
-            q = getattr(fluid_source, "particle_q", None)
-            if q is None or q.shape[0] != model.particle_count or q.device != model.device:
-                found = "no particle_q" if q is None else f"{q.shape[0]} particles on {q.device}"
-                raise ValueError(
-                    f"fluid_source has {found}: expected a State of this model "
-                    f"({model.particle_count} particles on {model.device})"
-                )
-        # upstream validated the mask (shape world_count + 1, bool, on the model's device)
-        self._fluid.reset(state, world_mask, restore_q, restore_qd, fluid_source)
+            raise ValueError("fluid_source is given, but the model has no fluid particles to restore")
+        return
+    from ....sim import StateFlags  # noqa: PLC0415
 
-    sig = inspect.signature(upstream_init)
-    extra = [inspect.Parameter(k, inspect.Parameter.KEYWORD_ONLY, default=v) for k, v in _FLUID_KWARGS.items()]
-    __init__.__signature__ = sig.replace(parameters=[*sig.parameters.values(), *extra])
-    __init__.__doc__ = (upstream_init.__doc__ or "") + _FLUID_DOC
+    bits = int(StateFlags.PARTICLE_Q | StateFlags.PARTICLE_QD) if flags is None else int(flags)
+    restore_q, restore_qd = bool(bits & StateFlags.PARTICLE_Q), bool(bits & StateFlags.PARTICLE_QD)
+    if not (restore_q or restore_qd):
+        return
+    model = solver.model
+    if fluid_source is not None:
+        q = getattr(fluid_source, "particle_q", None)
+        if q is None or q.shape[0] != model.particle_count or q.device != model.device:
+            found = "no particle_q" if q is None else f"{q.shape[0]} particles on {q.device}"
+            raise ValueError(
+                f"fluid_source has {found}: expected a State of this model "
+                f"({model.particle_count} particles on {model.device})"
+            )
+    # upstream validated the mask (shape world_count + 1, bool, on the model's device)
+    solver._fluid.reset(state, world_mask, restore_q, restore_qd, fluid_source)
 
-    cls.__init__ = __init__
-    cls.integrate_particles = integrate_particles
-    cls._apply_particle_deltas = _apply_particle_deltas
-    cls.step = step
-    cls._fluid_reset = _fluid_reset
-    cls.reset = reset
-    cls.fluid_diagnostics = fluid_diagnostics
-    cls.update_render_particles = update_render_particles
+
+def _additions() -> dict:
+    """The attributes the extension adds to ``SolverXPBD``: public methods and properties."""
+    added = {
+        "reset": reset,
+        "fluid_diagnostics": fluid_diagnostics,
+        "update_render_particles": update_render_particles,
+    }
     for name in (
         "render_positions",
         "render_anisotropy",
         "render_anisotropy_secondary",
         "render_anisotropy_tertiary",
     ):
-        setattr(cls, name, _render_property(name))
+        added[name] = _render_property(name)
     for name, field, doc in (
         ("diffuse_positions", "position", "positions [m] (``wp.vec3``)"),
         ("diffuse_velocities", "velocity", "velocities [m/s] (``wp.vec3``)"),
         ("diffuse_lifetimes", "lifetime", "remaining lifetimes [s] (float; <= 0: a dead entry)"),
         ("diffuse_kinds", "kind", "kinds (int32: 0 spray, 1 foam, 2 bubble, -1 dead)"),
     ):
-        setattr(cls, name, _diffuse_property(field, doc))
-    cls.diffuse_emitted_count = property(
+        added[name] = _diffuse_property(field, doc)
+    added["diffuse_emitted_count"] = property(
         lambda self: None if _diffuse(self) is None else _diffuse(self).counters[1:2],
         doc="Device counter (``wp.array`` of one int32) of diffuse particles emitted so far, or ``None`` when "
         "``max_diffuse_particles`` is 0.",
     )
-    cls.fluid_density = property(
+    added["fluid_density"] = property(
         lambda self: None if self._fluid is None else self._fluid.particle_density,
         doc="Per-particle density [kg/m^3] at the state of the last :meth:`fluid_diagnostics` call "
         "(``wp.array`` of ``particle_count``; 0 for non-fluid particles), or ``None`` without fluid.",
     )
-    cls.fluid_nonfinite_count = property(
+    added["fluid_nonfinite_count"] = property(
         lambda self: None if self._fluid is None else self._fluid.nonfinite_count,
         doc="Device counter (``wp.array`` of one int32) of fluid particles recovered from non-finite values.",
     )
-    cls.fluid_fast_count = property(
+    added["fluid_fast_count"] = property(
         lambda self: None if self._fluid is None else self._fluid.fast_count,
         doc="Device counter (``wp.array`` of one int32) of fluid particle substeps that ended with a velocity "
         "that carries the particle more than one rest distance in a substep.",
     )
     for name in _FLUID_KWARGS:
-        setattr(cls, name, _make_property(name, name in FluidConfig.MUTABLE))
-    cls._fluid_extension = True
+        added[name] = _make_property(name, name in FluidConfig.MUTABLE)
+    return added
+
+
+def activate(xpbd_module) -> None:
+    """Extend ``xpbd_module.SolverXPBD`` (``newton._src.solvers.xpbd``) in place through :mod:`.upstream`; idempotent."""
+    upstream.activate(xpbd_module, _FLUID_KWARGS, _FLUID_DOC, _make_fluid, _reset_fluid, _additions())
 
 
 _FLUID_DOC = """

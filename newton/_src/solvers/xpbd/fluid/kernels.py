@@ -553,6 +553,15 @@ def applied_particle(apply: ParticleApply, pi: int, delta: wp.vec3):
 
 
 @wp.kernel
+def applied_particles(apply: ParticleApply, particle_deltas: wp.array[wp.vec3]):
+    """:func:`applied_particle` of every particle, in particle order (the seam's check of upstream's formula)."""
+    i = wp.tid()
+    x, v = applied_particle(apply, i, particle_deltas[i])
+    apply.xm[i] = wp.vec4(x[0], x[1], x[2], 0.0)
+    apply.v[i] = v
+
+
+@wp.kernel
 def apply_fluid_density_correction(
     params: wp.array[FluidParams],
     slots: FluidSlots,
@@ -1081,8 +1090,8 @@ def solve_particle_particle_contacts_skip_fluid_pairs(
 ):
     """Particle contacts for models with fluid: a pair of two fluid particles is left to the density constraint.
 
-    Same launch signature as :func:`newton._src.solvers.xpbd.kernels.solve_particle_particle_contacts`
-    (it is swapped in only while a fluid solver steps), and for every other pair upstream's contact law
+    Same launch signature as upstream's particle-contact kernel (:mod:`.upstream` checks it and swaps
+    this one in only while a fluid solver steps), and for every other pair upstream's contact law
     in upstream's order of operations, so that granular particles and cloth step bitwise as without
     fluid. For a pair at distance ``d`` with gap ``e = d - r_i - r_j <= k_cohesion``, normal ``n`` and
     tangential relative velocity ``v_t``, particle ``i`` moves by

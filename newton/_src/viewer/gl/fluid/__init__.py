@@ -4,12 +4,11 @@
 """``viewer.log_fluid`` and ``viewer.log_fluid_diffuse``: a fluid surface and foam sprites in ViewerGL,
 a surface mesh in the USD, Rerun and Viser viewers, points in the batch colour everywhere else.
 
-:func:`activate` is the one place that extends the upstream viewers: it adds ``log_fluid`` to
-``ViewerBase`` (the point fallback every viewer inherits), overrides its drawing on ``ViewerGL`` with
-the screen-space surface of :mod:`.renderer` and on ``ViewerUSD`` (and so ``ViewerRTX``),
-``ViewerRerun`` and ``ViewerViser`` with the extracted mesh of :mod:`.surface_mesh`, adds the
-``fluid_surface`` toggle to those viewers and the ``ViewerGL.fluid_renderer`` accessor, and wraps
-``RendererGL.render`` so that the fluid is composited after the scene.
+:func:`activate` hands :mod:`.upstream`, the one module of the viewer extension that touches upstream
+names, what to add: ``log_fluid`` on ``ViewerBase`` (the point fallback every viewer inherits), its
+drawing on ``ViewerGL`` with the screen-space surface of :mod:`.renderer` and on ``ViewerUSD`` (and so
+``ViewerRTX``), ``ViewerRerun`` and ``ViewerViser`` with the extracted mesh of :mod:`.surface_mesh`,
+the ``fluid_surface`` toggle and the ``ViewerGL.fluid_renderer`` accessor.
 """
 
 from __future__ import annotations
@@ -19,58 +18,8 @@ import math
 import numpy as np
 import warp as wp
 
+from . import upstream
 from .renderer import DiffuseMaterial, FluidMaterial
-
-SUPPORTED_NEWTON = "1.8.0"
-
-# upstream names the extension relies on: class attributes checked at activation, instance
-# attributes of RendererGL checked when the first fluid frame is drawn
-_CLASS_NAMES = {
-    "ViewerBase": ("log_points", "_qualify"),
-    "ViewerGL": ("log_points", "_qualify", "set_model"),
-    "RendererGL": ("render", "_make_current", "gl"),
-    "ViewerUSD": ("log_mesh", "_get_path", "_qualify"),
-    "ViewerRerun": ("log_mesh",),
-    "ViewerViser": ("log_mesh",),
-}
-# the viewers that draw log_fluid as an extracted surface mesh
-_MESH_VIEWERS = ("ViewerUSD", "ViewerRerun", "ViewerViser")
-_RENDERER_NAMES = (
-    "_frame_fbo",
-    "_frame_texture",
-    "_frame_depth_texture",
-    "_frame_shader",
-    "_frame_vao",
-    "_frame_indices",
-    "_light_space_matrix",
-    "_sun_direction",
-    "_env_texture",
-    "_shadow_texture",
-    "_screen_width",
-    "_screen_height",
-)
-# set by RendererGL.render itself, so checked after it ran
-_FRAME_NAMES = ("_view_matrix", "_projection_matrix", "camera")
-
-
-def _upstream_error(missing) -> RuntimeError:
-    import newton  # noqa: PLC0415
-
-    return RuntimeError(
-        f"newton-fluid's viewer extension supports newton {SUPPORTED_NEWTON}, found newton {newton.__version__}: "
-        f"missing {', '.join(missing)}"
-    )
-
-
-def check_upstream(viewer_module) -> None:
-    """Raise ``RuntimeError`` naming the versions if an upstream viewer name we extend is missing."""
-    from newton._src.viewer.gl.opengl import RendererGL  # noqa: PLC0415
-
-    classes = {name: getattr(viewer_module, name) for name in ("ViewerBase", "ViewerGL", *_MESH_VIEWERS)}
-    classes["RendererGL"] = RendererGL
-    missing = [f"{c}.{n}" for c, names in _CLASS_NAMES.items() for n in names if not hasattr(classes[c], n)]
-    if missing:
-        raise _upstream_error(missing)
 
 
 def _check_material(
@@ -239,12 +188,12 @@ def _fluid_remove_mesh(self, name):
 
 
 def _fluid_remove_gl(self, name):
-    fluid_renderer(self).remove_batch(self._qualify(name))
+    fluid_renderer(self).remove_batch(upstream.qualified_name(self, name))
     self.log_points(name, None, hidden=True)
 
 
 def _fluid_draw_gl(self, name, positions, radii, material, axes, hidden):
-    qualified = self._qualify(name)
+    qualified = upstream.qualified_name(self, name)
     fluid = fluid_renderer(self)
     if not self.fluid_surface:
         fluid.hide_batch(qualified)
@@ -373,12 +322,12 @@ def _log_diffuse_points(viewer, name, positions, lifetimes, kinds, radius, rgba,
 
 
 def _fluid_remove_diffuse_gl(self, name):
-    fluid_renderer(self).remove_diffuse_batch(self._qualify(name))
+    fluid_renderer(self).remove_diffuse_batch(upstream.qualified_name(self, name))
     self.log_points(name, None, hidden=True)
 
 
 def _fluid_draw_diffuse_gl(self, name, positions, velocities, lifetimes, kinds, radius, material, hidden):
-    qualified = self._qualify(name)
+    qualified = upstream.qualified_name(self, name)
     fluid = fluid_renderer(self)
     if not self.fluid_surface:
         if qualified in fluid.diffuse_batches:
@@ -392,96 +341,31 @@ def _fluid_draw_diffuse_gl(self, name, positions, velocities, lifetimes, kinds, 
 
 def fluid_renderer(self):
     """The :class:`~newton._src.viewer.gl.fluid.renderer.FluidRendererGL` of this ViewerGL (created on first use)."""
-    renderer = self.renderer
-    fluid = getattr(renderer, "_newton_fluid", None)
-    if fluid is None:
-        from .renderer import FluidRendererGL  # noqa: PLC0415
-
-        missing = [n for n in _RENDERER_NAMES if not hasattr(renderer, n)]
-        if missing:
-            raise _upstream_error([f"RendererGL.{n}" for n in missing])
-        fluid = FluidRendererGL(renderer)
-        renderer._newton_fluid = fluid
-    return fluid
-
-
-def _fluid_surface_get(self) -> bool:
-    return getattr(self, "_newton_fluid_surface", True)
-
-
-def _fluid_surface_set(self, value: bool) -> None:
-    self._newton_fluid_surface = bool(value)
+    return upstream.fluid_renderer_of(self)
 
 
 def activate(viewer_module) -> None:
-    """Extend the viewers of ``viewer_module`` (``newton._src.viewer``); idempotent."""
-    check_upstream(viewer_module)
-    base = viewer_module.ViewerBase
-    if not hasattr(base, "log_fluid"):
-        # one public signature on the base class; each viewer draws through the hooks
-        base.log_fluid, base._fluid_draw, base._fluid_remove = log_fluid, _fluid_draw, _fluid_remove
-        base.log_fluid_diffuse = log_fluid_diffuse
-        base._fluid_draw_diffuse, base._fluid_remove_diffuse = _fluid_draw_diffuse, _fluid_remove_diffuse
-    for mesh_name in _MESH_VIEWERS:
-        mesh_viewer = getattr(viewer_module, mesh_name)
-        if "_fluid_draw" not in vars(mesh_viewer):
-            mesh_viewer._fluid_draw, mesh_viewer._fluid_remove = _fluid_draw_mesh, _fluid_remove_mesh
-            mesh_viewer.fluid_surface = property(
-                _fluid_surface_get,
-                _fluid_surface_set,
-                doc="Draw ``log_fluid`` batches as an extracted surface mesh (True, default) or as points (False).",
-            )
-    gl_viewer = viewer_module.ViewerGL
-    if not getattr(gl_viewer, "_newton_fluid_gl", False):
-        gl_viewer._newton_fluid_gl = True
-        gl_viewer._fluid_draw, gl_viewer._fluid_remove = _fluid_draw_gl, _fluid_remove_gl
-        gl_viewer._fluid_draw_diffuse, gl_viewer._fluid_remove_diffuse = (
-            _fluid_draw_diffuse_gl,
-            _fluid_remove_diffuse_gl,
-        )
-        gl_viewer.fluid_surface = property(
-            _fluid_surface_get,
-            _fluid_surface_set,
-            doc="Draw ``log_fluid`` batches as a liquid surface (True, default) or as raw particles (False).",
-        )
-        gl_viewer.fluid_renderer = property(fluid_renderer)
-        upstream_set_model = gl_viewer.set_model
-
-        def set_model(self, model, *args, **kwargs):
-            upstream_set_model(self, model, *args, **kwargs)
-            # fluid particles can be picked too: the same picking, extended
-            if model is not None and getattr(self, "picking", None) is not None and model.particle_count:
-                from newton._src.geometry.flags import ParticleFlags  # noqa: PLC0415
-
-                from .picking import FluidPicking  # noqa: PLC0415
-
-                if np.any(model.particle_flags.numpy() & int(ParticleFlags.FLUID)):
-                    self.picking = FluidPicking(
-                        model, world_offsets=self.world_offsets, visible_worlds_mask=self._visible_worlds_mask
-                    )
-
-        set_model.__doc__ = upstream_set_model.__doc__
-        set_model.__wrapped__ = upstream_set_model
-        gl_viewer.set_model = set_model
-
-        from newton._src.viewer.gl.opengl import RendererGL  # noqa: PLC0415
-
-        upstream_render = RendererGL.render
-
-        def render(self, *args, **kwargs):
-            upstream_render(self, *args, **kwargs)
-            fluid = getattr(self, "_newton_fluid", None)
-            if fluid is not None and fluid.has_work():
-                missing = [n for n in _FRAME_NAMES if not hasattr(self, n)]
-                if missing:
-                    raise _upstream_error([f"RendererGL.{n}" for n in missing])
-                fluid.render()
-                if self.draw_fps:
-                    # leave the state upstream's render leaves for the UI overlay
-                    self.gl.glClear(self.gl.GL_DEPTH_BUFFER_BIT)
-                    self.gl.glBlendFunc(self.gl.GL_SRC_ALPHA, self.gl.GL_ONE_MINUS_SRC_ALPHA)
-                    self.gl.glEnable(self.gl.GL_BLEND)
-
-        render.__doc__ = upstream_render.__doc__
-        render.__wrapped__ = upstream_render
-        RendererGL.render = render
+    """Extend the viewers of ``viewer_module`` (``newton._src.viewer``) through :mod:`.upstream`; idempotent."""
+    upstream.activate(
+        viewer_module,
+        base_methods={
+            "log_fluid": log_fluid,
+            "_fluid_draw": _fluid_draw,
+            "_fluid_remove": _fluid_remove,
+            "log_fluid_diffuse": log_fluid_diffuse,
+            "_fluid_draw_diffuse": _fluid_draw_diffuse,
+            "_fluid_remove_diffuse": _fluid_remove_diffuse,
+        },
+        mesh_methods={"_fluid_draw": _fluid_draw_mesh, "_fluid_remove": _fluid_remove_mesh},
+        gl_methods={
+            "_fluid_draw": _fluid_draw_gl,
+            "_fluid_remove": _fluid_remove_gl,
+            "_fluid_draw_diffuse": _fluid_draw_diffuse_gl,
+            "_fluid_remove_diffuse": _fluid_remove_diffuse_gl,
+            "fluid_renderer": property(fluid_renderer),
+        },
+        fluid_surface_doc={
+            "mesh": "Draw ``log_fluid`` batches as an extracted surface mesh (True, default) or as points (False).",
+            "gl": "Draw ``log_fluid`` batches as a liquid surface (True, default) or as raw particles (False).",
+        },
+    )

@@ -18,6 +18,8 @@ from newton._src.geometry.flags import ParticleFlags
 from newton._src.viewer.kernels import PickingState
 from newton._src.viewer.picking import Picking
 
+from .upstream import body_pick_distance, body_pick_state
+
 GRAVITY = 9.81  # [m/s^2], the unit of upstream's pick_max_acceleration
 
 
@@ -192,7 +194,7 @@ class FluidPicking(Picking):
         n = len(self._fluid_particle)
         if n == 0:
             return
-        body_distance = float(self._min_dist.numpy()[0]) if super().is_picking() else np.inf
+        body_distance = body_pick_distance(self) if super().is_picking() else np.inf
         m = self.model
         start = wp.vec3(*ray_start)
         direction = wp.normalize(wp.vec3(*ray_dir))
@@ -262,7 +264,7 @@ class FluidPicking(Picking):
                 self.model.particle_mass,
                 self._fluid_picked,
                 self._fluid_target,
-                self._pick_state,
+                body_pick_state(self),
                 self._fluid_radius,
             ],
             outputs=[state.particle_f, self._fluid_point],

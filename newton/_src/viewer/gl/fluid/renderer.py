@@ -148,8 +148,9 @@ class FluidBatchGL:
 class FluidRendererGL:
     """Owns the fluid batches of one ViewerGL and draws them after the scene."""
 
-    def __init__(self, renderer):
-        self.renderer = renderer
+    def __init__(self, frame):
+        #: the upstream renderer's frame, camera and lights (:class:`~.upstream.UpstreamFrame`)
+        self.frame = frame
         self.batches: dict[str, FluidBatchGL] = {}
         self.diffuse_batches: dict[str, FluidBatchGL] = {}
         self.diffuse_hooks: list = []
@@ -185,8 +186,8 @@ class FluidRendererGL:
 
     # ------------------------------------------------------------------ batches
     def set_batch(self, name, positions, radii, material, anisotropy, hidden):
-        gl = self.renderer.gl
-        self.renderer._make_current()
+        gl = self.frame.gl
+        self.frame.make_current()
         batch = self.batches.get(name)
         if batch is None:
             if len(self.batches) >= shaders.MAX_BATCHES:
@@ -225,8 +226,8 @@ class FluidRendererGL:
         batch.uploaded = False
 
     def set_diffuse_batch(self, name, positions, velocities, lifetimes, kinds, radius, material, hidden):
-        gl = self.renderer.gl
-        self.renderer._make_current()
+        gl = self.frame.gl
+        self.frame.make_current()
         batch = self.diffuse_batches.get(name)
         if batch is None:
             batch = FluidBatchGL(material=material, vec4_per_instance=2)
@@ -277,8 +278,8 @@ class FluidRendererGL:
 
     def _release_batch(self, batch):
         if batch is not None and batch.vbo:
-            gl = self.renderer.gl
-            self.renderer._make_current()
+            gl = self.frame.gl
+            self.frame.make_current()
             batch.registered = None
             gl.glDeleteBuffers(1, ctypes.byref(gl.GLuint(batch.vbo)))
             gl.glDeleteVertexArrays(1, ctypes.byref(gl.GLuint(batch.vao)))
@@ -428,7 +429,7 @@ class FluidRendererGL:
 
     def release(self):
         """Free every GL object of the fluid renderer (the viewer's context must be current)."""
-        gl = self.renderer.gl
+        gl = self.frame.gl
         for name in list(self.batches):
             self.remove_batch(name)
         for name in list(self.diffuse_batches):
@@ -449,8 +450,8 @@ class FluidRendererGL:
 
         Rows are bottom-up, as OpenGL stores them.
         """
-        gl = self.renderer.gl
-        self.renderer._make_current()
+        gl = self.frame.gl
+        self.frame.make_current()
         if self._targets is None:
             raise RuntimeError("no fluid has been rendered yet")
         w, h = self.size
@@ -476,16 +477,16 @@ class FluidRendererGL:
         batches = self.visible_batches()
         if not self.has_work():
             return
-        r = self.renderer
-        gl = r.gl
-        width, height = int(r._screen_width), int(r._screen_height)
+        frame = self.frame
+        gl = frame.gl
+        width, height = frame.size
         if width <= 0 or height <= 0:
             return
         self._ensure_common(gl)
         self._ensure_targets(gl, width, height)
         t = self._targets
-        view = np.asarray(r._view_matrix, dtype=np.float32).reshape(16)
-        proj = np.asarray(r._projection_matrix, dtype=np.float32).reshape(16)
+        view = frame.view_matrix
+        proj = frame.projection_matrix
         focal_px = float(proj[5]) * 0.5 * height
 
         timer = _PassTimer(gl, self.measure_timings)
@@ -497,7 +498,7 @@ class FluidRendererGL:
         self.last_splatting = ("compute" if compute else "raster") if batches else None
         # the scene's colour (read by the shading pass) and depth (occludes the fluid; in compute mode
         # a float copy of it is made for the kernels, which the later passes read instead)
-        gl.glBindFramebuffer(gl.GL_READ_FRAMEBUFFER, r._frame_fbo)
+        gl.glBindFramebuffer(gl.GL_READ_FRAMEBUFFER, frame.fbo)
         gl.glBindFramebuffer(gl.GL_DRAW_FRAMEBUFFER, t["fbo_scene"])
         bits = gl.GL_COLOR_BUFFER_BIT if compute else gl.GL_COLOR_BUFFER_BIT | gl.GL_DEPTH_BUFFER_BIT
         gl.glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, bits, gl.GL_NEAREST)
@@ -528,7 +529,7 @@ class FluidRendererGL:
                 depth_texture=t["depth"], width=width, height=height, view=view.copy(), projection=proj.copy()
             )
             for hook in self.diffuse_hooks:
-                gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, r._frame_fbo)
+                gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, frame.fbo)
                 hook(context)
             timer.mark("hooks")
 
@@ -581,7 +582,7 @@ class FluidRendererGL:
         prog = self._programs["depth_copy"]
         prog.use()
         gl.glActiveTexture(gl.GL_TEXTURE0)
-        gl.glBindTexture(gl.GL_TEXTURE_2D, _gl_name(self.renderer._frame_depth_texture))
+        gl.glBindTexture(gl.GL_TEXTURE_2D, _gl_name(self.frame.depth_texture))
         gl.glUniform1i(_loc(gl, prog, "scene_depth_tex"), 0)
         gl.glBindVertexArray(self._empty_vao)
         gl.glDrawArrays(gl.GL_TRIANGLES, 0, 3)
@@ -594,7 +595,6 @@ class FluidRendererGL:
 
     def _draw_surface(self, gl, batches, view, proj, focal_px, width, height, timer, compute):
         """Passes 1-4: thickness, depth, smoothing and shading of the fluid batches."""
-        r = self.renderer
         blur = np.zeros(shaders.MAX_BATCHES, dtype=np.float32)
         for index, batch in batches:
             blur[index] = self._blur_radius(batch)
@@ -605,7 +605,7 @@ class FluidRendererGL:
 
         # 4. shade into the frame buffer, with the fluid's depth
         gl.glViewport(0, 0, width, height)
-        gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, r._frame_fbo)
+        gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, self.frame.fbo)
         gl.glEnable(gl.GL_DEPTH_TEST)
         gl.glDepthFunc(gl.GL_ALWAYS)
         gl.glDepthMask(gl.GL_TRUE)
@@ -710,7 +710,7 @@ class FluidRendererGL:
     def _draw_diffuse(self, gl, diffuse, view, proj):
         """Velocity-stretched sprites of the diffuse batches, blended into the frame buffer."""
         t = self._targets
-        gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, self.renderer._frame_fbo)
+        gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, self.frame.fbo)
         gl.glDisable(gl.GL_DEPTH_TEST)
         gl.glDepthMask(gl.GL_FALSE)
         gl.glEnable(gl.GL_BLEND)
@@ -758,7 +758,7 @@ class FluidRendererGL:
         )
 
     def _set_shading(self, gl, prog, batches, view, proj, width, height):
-        r = self.renderer
+        frame = self.frame
         self._set_camera(gl, prog, view, proj)
         n = shaders.MAX_BATCHES
         color = np.zeros((n, 4), dtype=np.float32)
@@ -777,20 +777,21 @@ class FluidRendererGL:
         gl.glUniform1fv(_loc(gl, prog, "reflectance"), n, _floats(f0))
         gl.glUniform1fv(_loc(gl, prog, "specular_intensity"), n, _floats(spec))
         gl.glUniform1fv(_loc(gl, prog, "specular_power"), n, _floats(power))
-        light = np.asarray(r._light_space_matrix, dtype=np.float32).reshape(16)
+        light = frame.light_space_matrix
         gl.glUniformMatrix4fv(_loc(gl, prog, "light_space"), 1, gl.GL_FALSE, _floats(light))
-        sun = np.asarray(r._sun_direction if r._sun_direction is not None else (0.2, -0.3, 0.8), dtype=np.float64)
+        sun = frame.sun_direction
         view_rot = view.reshape(4, 4).T[:3, :3]
         sun_eye = view_rot @ (sun / np.linalg.norm(sun))
         gl.glUniform3f(_loc(gl, prog, "sun_dir_eye"), *(float(x) for x in sun_eye))
-        gl.glUniform3f(_loc(gl, prog, "sky_upper"), *(float(x) for x in r.sky_upper))
-        gl.glUniform3f(_loc(gl, prog, "sky_lower"), *(float(x) for x in r.sky_lower))
-        gl.glUniform1i(_loc(gl, prog, "up_axis"), int(getattr(r.camera, "up_axis", 2)))
+        sky_upper, sky_lower = frame.sky
+        gl.glUniform3f(_loc(gl, prog, "sky_upper"), *(float(x) for x in sky_upper))
+        gl.glUniform3f(_loc(gl, prog, "sky_lower"), *(float(x) for x in sky_lower))
+        gl.glUniform1i(_loc(gl, prog, "up_axis"), frame.up_axis)
         gl.glUniform2f(_loc(gl, prog, "inv_size"), 1.0 / width, 1.0 / height)
-        _uniform1f(gl, prog, "env_intensity", float(getattr(r, "_env_intensity", 1.0)))
+        _uniform1f(gl, prog, "env_intensity", frame.env_intensity)
         t = self._targets
-        env = r._env_texture
-        shadow = r._shadow_texture if r.draw_shadows else None
+        env = frame.env_texture
+        shadow = frame.shadow_texture
         units = (
             ("depth_tex", t["depth"]),
             ("optical_tex", t["optical"]),
@@ -808,19 +809,7 @@ class FluidRendererGL:
 
     def _present(self, gl, width, height):
         """Draw the composited frame texture to the window again (what RendererGL.render ended with)."""
-        r = self.renderer
-        gl.glBindFramebuffer(gl.GL_FRAMEBUFFER, 0)
-        gl.glViewport(0, 0, width, height)
-        gl.glDisable(gl.GL_DEPTH_TEST)
-        with r._frame_shader:
-            gl.glActiveTexture(gl.GL_TEXTURE0)
-            gl.glBindTexture(gl.GL_TEXTURE_2D, r._frame_texture)
-            r._frame_shader.update(0)
-            gl.glBindVertexArray(r._frame_vao)
-            gl.glDrawElements(gl.GL_TRIANGLES, len(r._frame_indices), gl.GL_UNSIGNED_INT, None)
-            gl.glBindVertexArray(0)
-            gl.glBindTexture(gl.GL_TEXTURE_2D, 0)
-        gl.glEnable(gl.GL_DEPTH_TEST)
+        self.frame.present(width, height)
 
 
 @dataclass

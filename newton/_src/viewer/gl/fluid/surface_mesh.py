@@ -33,6 +33,7 @@ import numpy as np
 import warp as wp
 
 from .renderer import COLOR_REFERENCE_THICKNESS, FluidMaterial
+from .upstream import usd_prim_path
 
 # voxel edge, extraction kernel radius and the kernels' scale, per particle radius (see the module's docstring)
 VOXEL_PER_RADIUS = 1.0
@@ -154,7 +155,7 @@ def bind_usd_water_material(viewer, name: str, material) -> None:
     from pxr import Gf, Sdf, UsdShade  # noqa: PLC0415
 
     stage = viewer.stage
-    mesh_path = viewer._get_path(viewer._qualify(name))
+    mesh_path = usd_prim_path(viewer, name)
     prim = stage.GetPrimAtPath(mesh_path)
     material_path = f"{mesh_path}_material"
     if not stage.GetPrimAtPath(material_path):
