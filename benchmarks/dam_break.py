@@ -30,8 +30,9 @@ import warp as wp
 from run_record import machine_record
 
 import newton
-from newton._src.solvers.xpbd.fluid import neighbors, solver_fluid
-from newton._src.solvers.xpbd.fluid.solver_fluid import DEFAULT_NONAFFINE_DAMPING, wall_density_tables
+from newton._src.solvers.xpbd.fluid.calibration import wall_density_tables
+from newton._src.solvers.xpbd.fluid.config import DEFAULT_NONAFFINE_DAMPING, FluidTuning
+from newton._src.solvers.xpbd.fluid.solver_fluid import SlotContent
 from newton._src.solvers.xpbd.fluid.upstream import upstream_step_only
 from newton.examples.fluid.example_fluid_xpbd_dam_break import TANK_HALF_LENGTH, add_dam_break
 from newton.examples.fluid.progress import track
@@ -177,13 +178,13 @@ def pass_breakdown(solver, collision, states, contacts, substeps: int, iteration
     def density():
         fluid.contacts = contacts
         for _ in range(substeps):
-            fluid._slots_hold_positions = True
+            fluid.slot_content = SlotContent.BUILT
             for _ in range(iterations):
                 fluid.solve_density(states[0].particle_q, deltas, apply, iterations)
 
     def finish():
         for _ in range(substeps):
-            fluid._velocities_applied = True
+            fluid.slot_content = SlotContent.APPLIED_WITH_VELOCITIES
             fluid.finish_step(states[0], dt)
 
     def collide():
@@ -243,9 +244,6 @@ def run(args) -> dict:
     dt = frame_dt / args.substeps
     model.soft_contact_mu = 0.0
     model.particle_max_velocity = args.speed_clamp * 0.5 * spacing / dt if args.speed_clamp > 0 else 1.0e5
-    if args.scan_lanes:
-        neighbors.SCAN_LANES = args.scan_lanes
-    solver_fluid.CONCURRENT_PASSES = not args.single_stream
     solver = newton.solvers.SolverXPBD(
         model,
         iterations=args.iterations,
@@ -261,6 +259,7 @@ def run(args) -> dict:
         fluid_max_iterations=args.density_iterations,
         max_diffuse_particles=args.diffuse,
         fluid_continuous_collision=args.continuous_collision,
+        _fluid_tuning=FluidTuning(concurrent_passes=not args.single_stream, scan_lanes=args.scan_lanes),
     )
     # contacts reach one diameter from the surface, where the walls' ghost density has vanished
     collision = newton.CollisionPipeline(model, soft_contact_max=model.particle_count, soft_contact_gap=0.5 * spacing)

@@ -41,7 +41,7 @@ from rest_column import GRAVITY, SPACING, build
 from run_record import write_record
 
 import newton
-from newton._src.solvers.xpbd.fluid.solver_fluid import rest_lattice
+from newton._src.solvers.xpbd.fluid.calibration import rest_lattice
 from newton.examples.fluid.progress import track
 
 

@@ -34,7 +34,7 @@ import warp as wp
 from run_record import machine_record
 
 import newton
-from newton._src.solvers.xpbd.fluid.solver_fluid import DEFAULT_NONAFFINE_DAMPING
+from newton._src.solvers.xpbd.fluid.config import DEFAULT_NONAFFINE_DAMPING
 from newton.examples.fluid.common import add_water_lattice
 from newton.examples.fluid.progress import track
 

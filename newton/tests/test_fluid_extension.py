@@ -120,6 +120,16 @@ def test_bad_arguments_raise(test, device):
             test.assertIn("[1, 64]", str(ctx.exception))
     with test.assertRaisesRegex(ValueError, "fluid_rest_distance=None"):
         newton.solvers.SolverXPBD(model)
+    # the private tuning keyword (benchmarks, tests)
+    from newton._src.solvers.xpbd.fluid.config import FluidTuning  # noqa: PLC0415
+
+    with test.assertRaisesRegex(ValueError, r"scan_lanes=4 is invalid: expected an integer in \[0, 3\]"):
+        FluidTuning(scan_lanes=4)
+    with test.assertRaisesRegex(ValueError, "_fluid_tuning='fast' is invalid"):
+        newton.solvers.SolverXPBD(model, fluid_rest_distance=0.1, _fluid_tuning="fast")
+    solver = newton.solvers.SolverXPBD(model, fluid_rest_distance=0.1, _fluid_tuning=FluidTuning(scan_lanes=2))
+    test.assertEqual(solver._fluid.search.lanes, 2)
+    test.assertNotIn("_fluid_tuning", inspect.signature(newton.solvers.SolverXPBD).parameters)
 
 
 def test_parameter_setters(test, device):

@@ -10,13 +10,9 @@ import numpy as np
 import warp as wp
 from newton.tests.unittest_utils import add_function_test, get_test_devices
 
-from newton._src.solvers.xpbd.fluid.kernels import apply_fluid_viscosity
-from newton._src.solvers.xpbd.fluid.solver_fluid import (
-    DEFAULT_NONAFFINE_DAMPING,
-    jacobi_spectral_radius,
-    stable_pass_bound,
-    stable_relaxation,
-)
+from newton._src.solvers.xpbd.fluid.calibration import jacobi_spectral_radius, stable_pass_bound, stable_relaxation
+from newton._src.solvers.xpbd.fluid.config import DEFAULT_NONAFFINE_DAMPING
+from newton._src.solvers.xpbd.fluid.velocity_passes import apply_fluid_viscosity
 from newton.examples.fluid.common import add_closed_box
 from newton.tests.test_solver_xpbd_fluid import D, Sim, add_block, make_model, pool_with_box
 

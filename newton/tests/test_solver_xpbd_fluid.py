@@ -11,18 +11,13 @@ import warp as wp
 from newton.tests.unittest_utils import add_function_test, get_test_devices
 
 import newton
-from newton._src.solvers.xpbd.fluid import solver_fluid
-from newton._src.solvers.xpbd.fluid.kernels import (
-    WALL_CONTACTS_PER_SLOT,
-    FluidParams,
-    FluidSlots,
-    density_constraint_lambda,
-    fluid_neighbor,
-    fluid_neighbor_layout,
-    fluid_wall_share,
-)
+from newton._src.solvers.xpbd.fluid.calibration import wall_density_tables
+from newton._src.solvers.xpbd.fluid.config import FULL_NEIGHBOR_FACTOR, FluidTuning
+from newton._src.solvers.xpbd.fluid.density_constraint import density_constraint_lambda
 from newton._src.solvers.xpbd.fluid.neighbors import FluidNeighborSearch
-from newton._src.solvers.xpbd.fluid.solver_fluid import FULL_NEIGHBOR_FACTOR, wall_density_tables
+from newton._src.solvers.xpbd.fluid.solver_fluid import SlotContent
+from newton._src.solvers.xpbd.fluid.sph import FluidParams, FluidSlots, fluid_neighbor, fluid_neighbor_layout
+from newton._src.solvers.xpbd.fluid.walls import WALL_CONTACTS_PER_SLOT, fluid_wall_share
 from newton.examples.fluid.common import add_tank
 
 FLUID = int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID)
@@ -176,8 +171,8 @@ def test_applied_positions_match_a_gather(test, device):
                 q, deltas, None, iterations
             )
         sim.step(6)
-        test.assertEqual(fluid._positions_applied, applied)
-        test.assertEqual(fluid._velocities_applied, applied)
+        expected = SlotContent.APPLIED_WITH_VELOCITIES if applied else SlotContent.STALE
+        test.assertIs(fluid.slot_content, expected)
         runs.append((sim.q(), sim.qd()))
         if applied and viscosity == 0.0:
             particle = fluid.slots.particle.numpy()
@@ -1272,37 +1267,33 @@ def test_concurrent_passes_match_one_stream(test, device):
         "tolerance": {"iterations": 3, "fluid_density_tolerance": 0.002},
         "sub-passes": {"iterations": 2, "fluid_max_iterations": 4, "fluid_density_tolerance": 0.002},
     }
-    saved = solver_fluid.CONCURRENT_PASSES
-    try:
-        for name, kwargs in modes.items():
-            runs = {}
-            for concurrent in (True, False):
-                solver_fluid.CONCURRENT_PASSES = concurrent
-                model = make_model(device, build, gravity=-9.81)
-                model.soft_contact_mu = 0.0
-                sim = Sim(model, substeps=4, contacts=True, fluid_viscosity=0.05, **kwargs)
-                test.assertEqual(sim.solver._fluid._side_stream is not None, concurrent and device.is_cuda)
-                sim.step(3)
-                eager = sim.q()
+    for name, kwargs in modes.items():
+        runs = {}
+        for concurrent in (True, False):
+            model = make_model(device, build, gravity=-9.81)
+            model.soft_contact_mu = 0.0
+            tuning = FluidTuning(concurrent_passes=concurrent)
+            sim = Sim(model, substeps=4, contacts=True, fluid_viscosity=0.05, _fluid_tuning=tuning, **kwargs)
+            test.assertEqual(sim.solver._fluid._side_stream is not None, concurrent and device.is_cuda)
+            sim.step(3)
+            eager = sim.q()
+            if device.is_cuda:
+                with wp.ScopedCapture(device=device) as capture:
+                    sim.step(1)  # an even number of substeps: state_0 is the graph's input and output
+                for _ in range(4):
+                    wp.capture_launch(capture.graph)
+            else:
+                sim.step(5)
+            runs[concurrent] = (eager, sim.q(), sim.qd())
+        with test.subTest(mode=name):
+            # the block falls into the column meanwhile
+            test.assertGreater(np.abs(runs[False][1] - runs[False][0]).max(), D)
+            test.assertTrue(all(np.isfinite(a).all() for a in runs[True]))
+            for a, b, atol in zip(runs[True], runs[False], (1.0e-3 * D, 1.0e-3 * D, 1.0e-2), strict=True):
                 if device.is_cuda:
-                    with wp.ScopedCapture(device=device) as capture:
-                        sim.step(1)  # an even number of substeps: state_0 is the graph's input and output
-                    for _ in range(4):
-                        wp.capture_launch(capture.graph)
+                    np.testing.assert_allclose(a, b, rtol=0.0, atol=atol)
                 else:
-                    sim.step(5)
-                runs[concurrent] = (eager, sim.q(), sim.qd())
-            with test.subTest(mode=name):
-                # the block falls into the column meanwhile
-                test.assertGreater(np.abs(runs[False][1] - runs[False][0]).max(), D)
-                test.assertTrue(all(np.isfinite(a).all() for a in runs[True]))
-                for a, b, atol in zip(runs[True], runs[False], (1.0e-3 * D, 1.0e-3 * D, 1.0e-2), strict=True):
-                    if device.is_cuda:
-                        np.testing.assert_allclose(a, b, rtol=0.0, atol=atol)
-                    else:
-                        np.testing.assert_array_equal(a, b)
-    finally:
-        solver_fluid.CONCURRENT_PASSES = saved
+                    np.testing.assert_array_equal(a, b)
 
 
 class TestSolverXPBDFluid(unittest.TestCase):

@@ -19,7 +19,8 @@ from __future__ import annotations
 import importlib
 
 from . import upstream
-from .solver_fluid import FluidConfig, FluidSolver, find_fluid_particles
+from .config import FluidConfig, FluidTuning
+from .solver_fluid import FluidSolver, find_fluid_particles
 
 SUPPORTED_NEWTON_VERSION = upstream.SUPPORTED_NEWTON_VERSION
 
@@ -165,8 +166,10 @@ def update_render_particles(
     self._fluid.update_render_particles(state, smoothing, anisotropy_scale, anisotropy_min, anisotropy_max)
 
 
-def _make_fluid(solver, model, fluid_kwargs: dict, verify_upstream) -> None:
+def _make_fluid(solver, model, fluid_kwargs: dict, tuning, verify_upstream) -> None:
     """After upstream's constructor: validate the keywords and, for a model with fluid, build its solve."""
+    if tuning is not None and not isinstance(tuning, FluidTuning):
+        raise ValueError(f"_fluid_tuning={tuning!r} is invalid: expected a FluidTuning or None")
     config = FluidConfig(**fluid_kwargs)
     solver._fluid_config = config
     solver._fluid = None
@@ -178,7 +181,7 @@ def _make_fluid(solver, model, fluid_kwargs: dict, verify_upstream) -> None:
                 "expected a particle spacing in (0, inf) [m]"
             )
         verify_upstream()
-        solver._fluid = FluidSolver(model, config, fluid_particle, solver.iterations)
+        solver._fluid = FluidSolver(model, config, fluid_particle, solver.iterations, tuning)
 
 
 def _reset_fluid(solver, state, world_mask, flags, fluid_source) -> None:

@@ -30,8 +30,8 @@ so the passes can be captured in a graph. Nothing here feeds back into the fluid
 import warp as wp
 
 from ....geometry import GeoType
-from .kernels import FluidParams, FluidSlots, fluid_neighbor, fluid_neighbor_layout
 from .neighbors import _NO_WORLD, fluid_cell, fluid_cell_hash, fluid_cell_range
+from .sph import FluidParams, FluidSlots, fluid_neighbor, fluid_neighbor_layout
 
 DIFFUSE_DEAD = wp.constant(-1)
 DIFFUSE_SPRAY = wp.constant(0)

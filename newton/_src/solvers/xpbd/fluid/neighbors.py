@@ -43,14 +43,8 @@ import numpy as np
 import warp as wp
 
 from ....geometry import ParticleFlags
-from .kernels import (
-    MAX_DISPLACEMENT_OFF,
-    WALL_CONTACTS_PER_SLOT,
-    FluidParams,
-    FluidSlots,
-    FluidWallContacts,
-    list_wall_contact,
-)
+from .sph import MAX_DISPLACEMENT_OFF, FluidParams, FluidSlots
+from .walls import WALL_CONTACTS_PER_SLOT, FluidWallContacts, list_wall_contact
 
 # approximate division and square root in CUDA code (no effect on the CPU; see the module notes)
 wp.set_module_options({"fast_math": True})
@@ -58,8 +52,6 @@ wp.set_module_options({"fast_math": True})
 # sentinel world index of a slot with no particle; real world indices are >= -1
 _NO_WORLD = -2
 # threads per particle in the scan of the full neighbourhood (each lists a part of the 27 cells);
-# 0: by the particle count and the device (:func:`scan_lanes`)
-SCAN_LANES = 0
 # threads an SM of a CUDA device keeps resident (2048 on every architecture Warp supports)
 _THREADS_PER_SM = 2048
 
@@ -269,7 +261,7 @@ def build_fluid_neighbor_lists(
     extra registers cost occupancy.)
 
     Thread ``t`` also lists contact ``t`` of ``walls`` as a static wall of its particle's slot
-    (:func:`~.kernels.list_wall_contact`): a launch of its own would cost more than these threads at
+    (:func:`~.walls.list_wall_contact`): a launch of its own would cost more than these threads at
     the sizes where a frame's time is latency (docs/performance.md, "The floor"). Launched with
     ``max(lanes * n, walls.contact_max)`` threads.
     """
@@ -351,8 +343,6 @@ def scan_lanes(device, particle_count: int) -> int:
     lanes up to half a wave of resident threads, 2 up to one wave, else 1; one on the CPU, where
     the threads run one after the other anyway.
     """
-    if SCAN_LANES:
-        return SCAN_LANES
     device = wp.get_device(device)
     if not device.is_cuda:
         return 1
@@ -498,7 +488,7 @@ class FluidNeighborSearch:
         With ``particle_q_start`` (and ``particle_qd``), each fluid particle's travel from there is first
         limited to ``params[0].max_displacement`` in place (see :func:`compute_fluid_cell_keys`).
         Afterwards :attr:`sorted_xm` holds the positions and masses at ``particle_q`` in slot order.
-        With ``walls`` (:class:`~.kernels.FluidWallContacts`), the slots' static walls are listed from those
+        With ``walls`` (:class:`~.walls.FluidWallContacts`), the slots' static walls are listed from those
         contacts in the same launch as the neighbours (else the slots have none).
         """
         self.compute_keys(particle_q, particle_flags, particle_world, params, particle_q_start, particle_qd)

@@ -17,7 +17,7 @@ Nothing here feeds back into the simulation.
 
 import warp as wp
 
-from .kernels import FluidParams, FluidSlots, fluid_neighbor, fluid_neighbor_layout
+from .sph import FluidParams, FluidSlots, fluid_neighbor, fluid_neighbor_layout
 
 # below this many neighbours a covariance says little about the shape: draw a sphere
 MIN_NEIGHBORS = 6

@@ -13,16 +13,43 @@ applied (:meth:`FluidSolver.solve_density`) and after the step (:meth:`FluidSolv
 from __future__ import annotations
 
 import contextlib
+import enum
 import math
-import numbers
-import warnings
-from dataclasses import dataclass
 
 import numpy as np
 import warp as wp
 
 from ....geometry import ParticleFlags
+from .calibration import WALL_TABLE_SIZE, poly6_np, rest_lattice, stable_relaxation, wall_density_tables
+from .config import (
+    AFFINE_REGULARIZER,
+    AKINCI_ZERO,
+    COHESION_DISPLACEMENT,
+    COHESION_GATE,
+    EPSILON_RELATIVE,
+    FULL_NEIGHBOR_FACTOR,
+    MAX_CORRECTION_FRACTION,
+    NONAFFINE_DAMPING_STEP,
+    FluidConfig,
+    FluidTuning,
+    fluid_memory_bytes,
+    free_memory,
+    real_in_range,
+)
 from .continuous_collision import ContinuousCollision, still_shapes
+from .density_constraint import (
+    APPLY_ADVANCE,
+    APPLY_AS_XPBD,
+    COMPRESSION_BINS,
+    COMPRESSION_SUMS,
+    ParticleApply,
+    apply_fluid_density_correction,
+    apply_fluid_warm_start,
+    compute_fluid_density_lambda,
+    gather_fluid_positions,
+    store_fluid_warm_start,
+)
+from .diagnostics import FluidReports
 from .diffuse import (
     DIFFUSE_BLOCK_DIM,
     DIFFUSE_DEAD,
@@ -30,290 +57,31 @@ from .diffuse import (
     advect_diffuse_particles,
     emit_diffuse_particles,
 )
-from .kernels import (
-    APPLY_ADVANCE,
-    APPLY_AS_XPBD,
-    COMPRESSION_BINS,
-    COMPRESSION_SUMS,
-    MAX_DISPLACEMENT_OFF,
-    PEAK_COMPRESSION,
-    WALL_CONTACTS_PER_SLOT,
-    FluidParams,
-    FluidSlots,
-    FluidWallContacts,
-    ParticleApply,
-    apply_fluid_density_correction,
-    apply_fluid_viscosity,
-    apply_fluid_warm_start,
-    compute_fluid_density_lambda,
-    confine_vorticity_and_recover,
-    decide_after_first_fluid_pass,
-    decide_fluid_density_converged,
-    decide_fluid_subiteration,
-    gather_fluid_positions,
-    gather_fluid_state,
-    recover_nonfinite_fluid,
-    store_fluid_warm_start,
-)
 from .neighbors import FluidNeighborSearch, neighbor_list_layout
 from .render_particles import compute_fluid_render_particles, reset_render_particles
 from .reset import reset_diffuse_worlds, reset_fluid_worlds
-
-# smoothing length h = DEFAULT_SMOOTHING_RATIO * rest distance unless given
-DEFAULT_SMOOTHING_RATIO = 1.8
-# share of the particle-scale (non-affine) velocity removed per NONAFFINE_DAMPING_STEP unless given (docs/validation.md,
-# "Still water")
-DEFAULT_NONAFFINE_DAMPING = 0.1
-# the time over which fluid_nonaffine_damping removes its share [s]: one substep of 8 at 60 Hz; a substep
-# of dt removes 1 - (1 - share)^(dt / step), so the damping per second does not follow the substep count
-NONAFFINE_DAMPING_STEP = 1.0 / 480.0
-# share of the stable step (stable_pass_bound) the default relaxation takes on the rest lattice
-JACOBI_STEP_MARGIN = 0.875
-# regulariser of the affine fit's position covariance, relative to the rest distance squared
-AFFINE_REGULARIZER = 1.0e-3
-# one iteration moves a particle by at most this fraction of the rest distance
-MAX_CORRECTION_FRACTION = 0.5
-# largest fluid_density_ramp: a ramp over 1 % compression would hold every loaded particle 0.5 % more compressed
-MAX_DENSITY_RAMP = 0.01
-# lambda regulariser relative to sum |grad C|^2 of the rest lattice (constraint softening ~1e-3)
-EPSILON_RELATIVE = 1.0e-3
-# cohesion 1 moves a surface particle by at most ~this fraction of the rest distance per iteration
-COHESION_DISPLACEMENT = 0.0025
-# neighbours stored per particle for fluid_max_neighbors=0, as a multiple of the rest-lattice count
-FULL_NEIGHBOR_FACTOR = 4
-# samples of the wall density tables over [0, h]
-WALL_TABLE_SIZE = 64
-# a pair under-dense by this fraction of the rest density takes the full cohesion, at rest density none
-COHESION_GATE = 0.02
-# zero of Akinci's cohesion spline, as a fraction of h: 2 (1-u)^3 u^3 = 1/64
-AKINCI_ZERO = 0.5 * (1.0 - math.sqrt(1.0 - 4.0 * (1.0 / 128.0) ** (1.0 / 3.0)))
-# on a CUDA device, run the fluid passes that do not need upstream's work of the moment on a second
-# stream beside it (the sort and scan beside the first iteration's contacts, the next density pass
-# beside the deltas' application and the next contacts); False: one stream
-CONCURRENT_PASSES = True
+from .schedule import decide_after_first_fluid_pass, decide_fluid_density_converged, decide_fluid_subiteration
+from .sph import MAX_DISPLACEMENT_OFF, FluidParams, FluidSlots
+from .velocity_passes import (
+    apply_fluid_viscosity,
+    confine_vorticity_and_recover,
+    gather_fluid_state,
+    recover_nonfinite_fluid,
+)
+from .walls import FluidWallContacts
 
 
-def _real(name: str, value, lo: float, hi: float = math.inf, lo_open: bool = False, hi_open: bool = False) -> float:
-    """Return ``value`` as float, or raise ``ValueError`` naming the argument, the value and the valid range."""
-    lb = "(" if lo_open else "["
-    rb = ")" if hi_open or hi == math.inf else "]"
-    valid = f"{lb}{lo:g}, {'inf' if hi == math.inf else f'{hi:g}'}{rb}"
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(float(value)):
-        raise ValueError(f"{name}={value!r} is invalid: expected a finite number in {valid}")
-    v = float(value)
-    if v < lo or (lo_open and v == lo) or v > hi or (hi_open and v == hi):
-        raise ValueError(f"{name}={value!r} is out of range: expected a value in {valid}")
-    return v
+class SlotContent(enum.Enum):
+    """What the current slot buffer (``slots.xm``, and ``sorted_v``) holds between the passes of a step."""
 
-
-def _count(name: str, value, hi: int, lo: int = 0) -> int:
-    """Return ``value`` as int, or raise ``ValueError`` naming the argument, the value and the valid range."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not lo <= int(value) <= hi:
-        raise ValueError(f"{name}={value!r} is invalid: expected an integer in [{lo}, {hi}]")
-    return int(value)
-
-
-@dataclass
-class FluidConfig:
-    """Validated fluid parameters of one solver (see :class:`~newton.solvers.SolverXPBD` for their meaning)."""
-
-    fluid_rest_distance: float | None = None
-    fluid_smoothing_length: float | None = None
-    fluid_rest_density: float | None = None
-    fluid_cohesion: float = 0.0
-    fluid_viscosity: float = 0.0
-    fluid_nonaffine_damping: float = DEFAULT_NONAFFINE_DAMPING
-    fluid_vorticity: float = 0.0
-    fluid_relaxation: float | None = None
-    fluid_density_ramp: float = 0.0
-    fluid_max_neighbors: int = 0
-    fluid_density_tolerance: float = 0.0
-    fluid_max_iterations: int = 1
-    fluid_max_displacement: float = math.inf
-    fluid_warm_start: float = 0.0
-    max_diffuse_particles: int = 0
-    fluid_continuous_collision: bool = True
-
-    #: parameters that may change after construction (they live on the device)
-    MUTABLE = (
-        "fluid_rest_density",
-        "fluid_cohesion",
-        "fluid_viscosity",
-        "fluid_nonaffine_damping",
-        "fluid_vorticity",
-        "fluid_relaxation",
-        "fluid_density_ramp",
-        "fluid_density_tolerance",
-        "fluid_max_displacement",
-        "fluid_warm_start",
-    )
-
-    def __post_init__(self):
-        if self.fluid_rest_distance is not None:
-            self.fluid_rest_distance = _real("fluid_rest_distance", self.fluid_rest_distance, 0.0, lo_open=True)
-            d = self.fluid_rest_distance
-            if self.fluid_smoothing_length is None:
-                self.fluid_smoothing_length = DEFAULT_SMOOTHING_RATIO * d
-            self.fluid_smoothing_length = _real(
-                "fluid_smoothing_length", self.fluid_smoothing_length, d, 4.0 * d, lo_open=True
-            )
-        elif self.fluid_smoothing_length is not None:
-            self.fluid_smoothing_length = _real(
-                "fluid_smoothing_length", self.fluid_smoothing_length, 0.0, lo_open=True
-            )
-        for name in self.MUTABLE:
-            self.set(name, getattr(self, name))
-        self.fluid_max_neighbors = _count("fluid_max_neighbors", self.fluid_max_neighbors, 4096)
-        self.fluid_max_iterations = _count("fluid_max_iterations", self.fluid_max_iterations, 64, lo=1)
-        self.max_diffuse_particles = _count("max_diffuse_particles", self.max_diffuse_particles, 2**31 - 1)
-        if not isinstance(self.fluid_continuous_collision, bool):
-            raise ValueError(
-                f"fluid_continuous_collision={self.fluid_continuous_collision!r} is invalid: expected True or False"
-            )
-
-    def set(self, name: str, value) -> None:
-        """Validate and store one mutable parameter."""
-        if name == "fluid_rest_density":
-            v = None if value is None else _real(name, value, 0.0, lo_open=True)
-        elif name in ("fluid_cohesion", "fluid_viscosity", "fluid_nonaffine_damping"):
-            v = _real(name, value, 0.0, 1.0)
-        elif name in ("fluid_vorticity", "fluid_density_tolerance"):
-            v = _real(name, value, 0.0)
-        elif name == "fluid_max_displacement":
-            # inf (no limit) is allowed here, unlike for the other parameters
-            infinite = isinstance(value, numbers.Real) and not isinstance(value, bool) and value == math.inf
-            v = math.inf if infinite else _real(name, value, 0.0, lo_open=True)
-        elif name == "fluid_warm_start":
-            v = _real(name, value, 0.0, 1.0, hi_open=True)
-        elif name == "fluid_relaxation":
-            # None: the solver's stable step for its kernel and pass count (FluidSolver.default_relaxation)
-            v = None if value is None else _real(name, value, 0.0, 2.0, lo_open=True)
-        elif name == "fluid_density_ramp":
-            v = _real(name, value, 0.0, MAX_DENSITY_RAMP)
-        else:
-            raise AttributeError(f"{name} cannot be changed after the solver is created")
-        setattr(self, name, v)
-
-
-def fluid_memory_bytes(
-    fluid_count: int, particle_count: int, neighbor_capacity: int, diffuse: int = 0, lanes: int = 1
-) -> int:
-    """Device memory the fluid solve allocates [bytes] (render particles, allocated on first use, excluded).
-
-    Per fluid particle: the neighbour list (4 bytes a row, ``neighbor_capacity`` rows), the sort's keys,
-    ranks, sorted keys, scattered and ordered values (20 bytes), the cell table (at least two entries a
-    particle: count and first slot, 16 bytes), the gathered slot (24 bytes), the neighbour and candidate
-    counts of each of the scan's ``lanes`` (8 bytes a lane), the static-wall planes (16 bytes each,
-    ``WALL_CONTACTS_PER_SLOT``) and about 84 bytes of per-slot state; per model particle, two 4-byte
-    maps; per diffuse particle, 28 bytes.
-    """
-    per_fluid = 4 * neighbor_capacity + 20 + 16 + 24 + 8 * lanes + 84 + 16 * WALL_CONTACTS_PER_SLOT
-    return int(fluid_count * per_fluid + 12 * particle_count + 28 * diffuse)
-
-
-def free_memory(device) -> int | None:
-    """Free memory of ``device`` [bytes]: the CUDA device's, or the host's available memory; None if unknown."""
-    if device.is_cuda:
-        return int(device.free_memory)
-    try:
-        with open("/proc/meminfo") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    return None
-
-
-def rest_lattice(rest_distance: float, h: float) -> np.ndarray:
-    """Offsets [m] of the cubic lattice points with spacing ``rest_distance`` within ``h`` of the origin (origin included)."""
-    n = int(math.ceil(h / rest_distance))
-    r = np.arange(-n, n + 1, dtype=np.float64) * rest_distance
-    grid = np.stack(np.meshgrid(r, r, r, indexing="ij"), axis=-1).reshape(-1, 3)
-    return grid[np.einsum("ij,ij->i", grid, grid) < h * h]
-
-
-def jacobi_spectral_radius(rest_distance: float, h: float, samples: int = 24) -> float:
-    """Largest eigenvalue of one Jacobi pass of the density constraint on the rest lattice.
-
-    A pass moves the particles by ``-J^T D^-1 C`` (``J`` the constraint gradients, ``D`` the diagonal of
-    ``J J^T``), so the constraint error ``C`` goes to ``(I - J J^T D^-1) C``. On the cubic lattice the
-    operator is translation invariant: a displacement wave ``u e^(i k.x)`` changes ``C`` by
-    ``b(k) . u`` with ``b(k) = sum_j grad W(r_j) sin(k . r_j)`` (up to a phase), so the eigenvalue at wave
-    vector ``k`` is ``|b(k)|^2 / sum_j |grad W(r_j)|^2``. Sampled over the Brillouin zone (the largest sits
-    at its edge): 2.43 at the default h = 1.8 d. Above 2 a pass overshoots those modes, and two passes
-    amplify them: the lattice's shortest waves grow every substep.
-    """
-    lattice = rest_lattice(rest_distance, h)
-    r = np.sqrt(np.einsum("ij,ij->i", lattice, lattice))
-    keep = r > 0.0
-    offsets, r = lattice[keep], r[keep]
-    grad = offsets / r[:, None] * ((h - r) ** 2)[:, None]
-    k = (np.arange(samples + 1) / samples) * (math.pi / rest_distance)
-    waves = np.stack(np.meshgrid(k, k, k, indexing="ij"), axis=-1).reshape(-1, 3)
-    b = np.sin(waves @ offsets.T) @ grad
-    return float(np.einsum("ij,ij->i", b, b).max() / np.einsum("ij,ij->", grad, grad))
-
-
-def stable_pass_bound(fewest: int, most: int) -> float:
-    """Largest ``relaxation x eigenvalue`` for which any substep of ``fewest`` to ``most`` Jacobi passes is stable.
-
-    After ``k`` passes a mode of eigenvalue ``mu`` keeps ``p = (1 - w mu)^k`` of its error, and the
-    substep turns the correction into velocity: ``x' = p (x + v dt)``, ``v' = (x' - x) / dt``, whose
-    eigenvalues solve ``z^2 - 2 p z + p = 0``. They stay inside the unit circle for ``-1/3 < p < 1``: for an
-    even ``k`` while ``w mu < 2``, for an odd one while ``w mu < 1 + 3^(-1/k)`` (4/3 for one pass). The
-    bound is the least over the counts a substep may run.
-    """
-    odd = fewest if fewest % 2 else fewest + 1
-    return 1.0 + 3.0 ** (-1.0 / odd) if odd <= most else 2.0
-
-
-def stable_relaxation(rest_distance: float, h: float, fewest: int = 2, most: int = 2) -> float:
-    """Default ``fluid_relaxation``: a step that keeps every mode of the rest lattice stable, at most 1.
-
-    ``JACOBI_STEP_MARGIN`` of :func:`stable_pass_bound` over :func:`jacobi_spectral_radius`: 0.72 at
-    h = 1.8 d for two passes a substep, 0.48 for one. A disordered neighbourhood's spectral radius is
-    close to the lattice's (2.45 measured in a settled column against 2.43), within the margin.
-    """
-    bound = stable_pass_bound(fewest, most)
-    return min(1.0, JACOBI_STEP_MARGIN * bound / jacobi_spectral_radius(rest_distance, h))
-
-
-def poly6_np(r2: np.ndarray, h: float) -> np.ndarray:
-    return 315.0 / (64.0 * math.pi * h**9) * np.maximum(h * h - r2, 0.0) ** 3
-
-
-def wall_density_tables(rest_distance: float, h: float, mass: float, size: int = WALL_TABLE_SIZE):
-    """Poly6 density [kg/m^3] of a lattice at rest continued beyond a plane wall, and its derivative.
-
-    For a particle whose centre is ``delta`` from the wall (``delta`` sampled uniformly on
-    ``[0, h]``), the ghost lattice has layers at ``delta + d/2 + k d`` behind the wall: exactly
-    the layers a lattice would have if the fluid went on, when the particle touches the wall
-    (``delta = d/2``). The density is tapered to zero between ``0.75 d`` and ``d`` (where it is
-    below 5 % and 1 % of the lattice density) so that it vanishes before particle-shape contacts
-    end, at ``radius + soft_contact_gap``: with a gap of at least the radius it never jumps.
-
-    Returns:
-        tuple: densities and their derivatives against ``delta`` [kg/m^4], each of ``size`` samples.
-    """
-    d = rest_distance
-    n = int(math.ceil(h / d))
-    ab = np.arange(-n, n + 1) * d
-    plane = (ab[:, None] ** 2 + ab[None, :] ** 2).reshape(-1)
-    k = 315.0 / (64.0 * math.pi * h**9)
-    deltas = np.linspace(0.0, h, size)
-    rho = np.zeros(size)
-    grad = np.zeros(size)
-    for i, delta in enumerate(deltas):
-        z = delta + 0.5 * d + np.arange(n + 1) * d
-        q = np.maximum(h * h - plane[None, :] - z[:, None] ** 2, 0.0)
-        rho[i] = mass * k * (q**3).sum()
-        # d/d(delta) of (h^2 - r^2)^3 with dr^2/d(delta) = 2 z
-        grad[i] = mass * k * (-6.0 * z[:, None] * q**2).sum()
-    t = np.clip((deltas - 0.75 * d) / (0.25 * d), 0.0, 1.0)
-    window = 1.0 - t * t * (3.0 - 2.0 * t)
-    dwindow = np.where((t > 0.0) & (t < 1.0), -6.0 * t * (1.0 - t) / (0.25 * d), 0.0)
-    return rho * window, grad * window + rho * dwindow
+    #: out of date: a pass that reads positions gathers them first
+    STALE = enum.auto()
+    #: the positions the neighbourhood build gathered: a substep's first iteration uses them as they are
+    BUILT = enum.auto()
+    #: the positions SolverXPBD applied after the last iteration, written by its correction pass
+    APPLIED = enum.auto()
+    #: those positions, and in ``sorted_v`` the velocities it applied (the velocity pass gathers nothing)
+    APPLIED_WITH_VELOCITIES = enum.auto()
 
 
 class FluidSolver:
@@ -325,11 +93,20 @@ class FluidSolver:
         fluid_particle: Indices of the fluid particles (host array).
         iterations: XPBD iterations of the solver's substep (one density pass each, or more), >= 1; sets
             the default relaxation (:func:`stable_relaxation`).
+        tuning: Implementation choices that leave the results unchanged; ``None``: the defaults.
     """
 
-    def __init__(self, model, config: FluidConfig, fluid_particle: np.ndarray, iterations: int):
+    def __init__(
+        self,
+        model,
+        config: FluidConfig,
+        fluid_particle: np.ndarray,
+        iterations: int,
+        tuning: FluidTuning | None = None,
+    ):
         self.model = model
         self.config = config
+        self.tuning = FluidTuning() if tuning is None else tuning
         self.device = model.device
         self.fluid_count = len(fluid_particle)
         d = config.fluid_rest_distance
@@ -360,8 +137,9 @@ class FluidSolver:
             capacity, capped = config.fluid_max_neighbors, True
         else:
             capacity, capped = FULL_NEIGHBOR_FACTOR * self.rest_lattice_neighbors, False
+        forced_lanes = self.tuning.scan_lanes if self.tuning.scan_lanes and not capped else None
         lanes, lane_capacity = neighbor_list_layout(
-            capacity, capped, device=self.device, particle_count=self.fluid_count
+            capacity, capped, forced_lanes, device=self.device, particle_count=self.fluid_count
         )
         need = fluid_memory_bytes(
             self.fluid_count, model.particle_count, lanes * lane_capacity, config.max_diffuse_particles, lanes
@@ -378,7 +156,7 @@ class FluidSolver:
             worlds = model.particle_world.numpy()[fluid_particle]
             world_count = int(worlds.max()) + 1 if len(worlds) else 0
             self.search = FluidNeighborSearch(
-                self.fluid_particle, model.particle_count, world_count, h, capacity, capped
+                self.fluid_particle, model.particle_count, world_count, h, capacity, capped, forced_lanes
             )
             n = self.fluid_count
             self.params = wp.zeros(1, dtype=FluidParams)
@@ -412,7 +190,6 @@ class FluidSolver:
             self._compression_bins = wp.zeros(COMPRESSION_SUMS, dtype=float)
             # particles past PEAK_COMPRESSION in a substep's last density pass, and their peak, per bin:
             # kept on the device between two diagnostics calls (see compute_fluid_density_lambda)
-            self._peaks = wp.zeros(2 * COMPRESSION_BINS, dtype=float)
             self.subiterations_total = wp.zeros(1, dtype=wp.int32)
             # gradient of the static walls' share of rho / rho0 per slot, from the density pass to the correction
             self.wall_grad = wp.zeros(n, dtype=wp.vec3)
@@ -420,14 +197,12 @@ class FluidSolver:
             self.wall_table = wp.array(wall_rho / self.lattice_density, dtype=float)
             self.wall_table_grad = wp.array(wall_drho / self.lattice_density, dtype=float)
             self.last_finite_q = wp.array(model.particle_q.numpy()[fluid_particle], dtype=wp.vec3)
-            self.nonfinite_count = wp.zeros(1, dtype=wp.int32)
-            self.fast_count = wp.zeros(1, dtype=wp.int32)
-            self._fast_reported = 0
-            self._nonfinite_reported = 0
-            self._compression_reported = False
+            #: device counters of what happened between two diagnostics calls, and the warnings that report it
+            self.reports = FluidReports(model.particle_count)
+            self.nonfinite_count = self.reports.nonfinite_count
+            self.fast_count = self.reports.fast_count
             #: density of every particle at the state of the last :meth:`diagnostics` call [kg/m^3] (0 for non-fluid)
-            self.particle_density = wp.zeros(model.particle_count, dtype=float)
-            self._summary = wp.zeros(_SUMMARY_SIZE, dtype=float)
+            self.particle_density = self.reports.particle_density
             # stands in for the reset mask when every world is reset (the kernel then reads none)
             self._no_mask = wp.zeros(1, dtype=wp.bool)
         other = FluidSlots()
@@ -451,11 +226,8 @@ class FluidSolver:
         self._iteration = 0
         self._last_iteration = False
         self._warm_stored = False
-        # the current slots hold the particles' positions (and sorted_v their velocities) as SolverXPBD
-        # last applied them, so no gather is needed
-        self._positions_applied = False
-        self._velocities_applied = False
-        self._slots_hold_positions = False
+        #: what the current slot buffer holds (see SlotContent)
+        self.slot_content = SlotContent.STALE
         self.diffuse = None
         if config.max_diffuse_particles > 0:
             c = config.max_diffuse_particles
@@ -481,8 +253,9 @@ class FluidSolver:
             self._no_body_flags = wp.zeros(1, dtype=wp.int32)
         # the fluid's paths kept out of static and kinematic shapes (None: off, or no such shape)
         self.continuous_collision = ContinuousCollision.build(model) if config.fluid_continuous_collision else None
-        # the second stream (see CONCURRENT_PASSES), and whether work on it has not been joined yet
-        self._side_stream = wp.Stream(self.device) if self.device.is_cuda and CONCURRENT_PASSES else None
+        # the second stream (see FluidTuning.concurrent_passes), and whether work on it has not been joined yet
+        concurrent = self.device.is_cuda and self.tuning.concurrent_passes
+        self._side_stream = wp.Stream(self.device) if concurrent else None
         self._side_pending = False
         # the density pass of the next iteration ran ahead on the second stream
         self._evaluated_ahead = False
@@ -554,7 +327,7 @@ class FluidSolver:
         """Launches inside go to the second stream, after everything launched so far on the current one.
 
         They run beside what the current stream does next, until :meth:`_join`. Without a second
-        stream (CPU, or ``CONCURRENT_PASSES`` off) they go to the current stream.
+        stream (CPU, or ``FluidTuning.concurrent_passes`` off) they go to the current stream.
         """
         if self._side_stream is None:
             yield
@@ -600,12 +373,10 @@ class FluidSolver:
             s.sort(particle_q, m.particle_mass, m.particle_world)
             s.scan(walls)
         # the build gathered these positions into slot order: the first iteration uses them as they are
-        self._slots_hold_positions = True
+        self.slot_content = SlotContent.BUILT
         self._iteration = 0
         self._warm_stored = False
         self._current = 0
-        self._positions_applied = False
-        self._velocities_applied = False
         self._evaluated_ahead = False
 
     @property
@@ -619,7 +390,7 @@ class FluidSolver:
         """The density constraint of one XPBD iteration: add its correction to ``particle_deltas``.
 
         ``apply`` = ``(x_start, dt, v_max, velocities)`` says how ``SolverXPBD`` applies the deltas
-        after this call (:class:`~.kernels.ParticleApply`; ``x_start`` the substep's start positions).
+        after this call (:class:`~.density_constraint.ParticleApply`; ``x_start`` the substep's start positions).
         With it, and one density pass per iteration that is sure to correct (no tolerance, or the
         substep's first), the correction pass also writes every fluid particle's applied position in
         slot order (and, with ``velocities``, its velocity: false where something changes the
@@ -644,9 +415,9 @@ class FluidSolver:
         # the substep's first iteration starts from the positions the build gathered; its first density
         # pass always corrects (see decide_after_first_fluid_pass), and with the tolerance on the XPBD
         # iterations a converged substep skips the rest of its passes
-        first = self._slots_hold_positions
+        first = self.slot_content is SlotContent.BUILT
         active = self._substep_active if self.iteration_tolerance and not first else self._always_active
-        if not self._slots_hold_positions and not self._positions_applied:
+        if self.slot_content is SlotContent.STALE:
             wp.launch(
                 gather_fluid_positions,
                 dim=n,
@@ -654,12 +425,10 @@ class FluidSolver:
                 device=self.device,
             )
         self._iteration += 1
-        if self._slots_hold_positions and self._warm_start_on():
+        if first and self._warm_start_on():
             self._warm_start(particle_deltas, active)
         # after this iteration's correction, the slots' positions are out of date (unless it writes the applied ones)
-        self._slots_hold_positions = False
-        self._positions_applied = False
-        self._velocities_applied = False
+        self.slot_content = SlotContent.STALE
         if self.config.fluid_max_iterations == 1:
             if not self._evaluated_ahead:
                 self._evaluate_constraint(
@@ -687,8 +456,7 @@ class FluidSolver:
             self._warm_stored = self._warm_stored or store
             if predict:
                 self._current = 1 - self._current
-                self._positions_applied = True
-                self._velocities_applied = bool(apply[3])
+                self.slot_content = SlotContent.APPLIED_WITH_VELOCITIES if apply[3] else SlotContent.APPLIED
                 if not self.iteration_tolerance and self._iteration < iterations and self._side_stream is not None:
                     # the next iteration's density pass needs only these positions: it runs beside
                     # upstream's application of the deltas and its next contacts
@@ -834,7 +602,7 @@ class FluidSolver:
                 int(track_compression),
                 int(last),
             ],
-            outputs=[self.density, self.lambda_rho, self.wall_grad, self._compression_bins, self._peaks],
+            outputs=[self.density, self.lambda_rho, self.wall_grad, self._compression_bins, self.reports.peaks],
             device=self.device,
         )
 
@@ -893,7 +661,7 @@ class FluidSolver:
             self._diffuse_pass(state_out, dt)
 
     def _recovery_outputs(self, state_out) -> list:
-        """The arrays :func:`~.kernels.recover_fluid_particle` updates, for the kernels that call it."""
+        """The arrays :func:`~.velocity_passes.recover_fluid_particle` updates, for the kernels that call it."""
         return [state_out.particle_q, state_out.particle_qd, self.last_finite_q, self.nonfinite_count, self.fast_count]
 
     def _diffuse_pass(self, state_out, dt: float) -> None:
@@ -945,7 +713,7 @@ class FluidSolver:
     def _velocity_pass(self, state_out, dt: float) -> None:
         """Viscosity, the non-affine damping of a substep of ``dt`` and the vorticity estimate (one neighbour loop)."""
         m, n = self.model, self.fluid_count
-        if not self._velocities_applied:
+        if self.slot_content is not SlotContent.APPLIED_WITH_VELOCITIES:
             wp.launch(
                 gather_fluid_state,
                 dim=n,
@@ -986,10 +754,10 @@ class FluidSolver:
         self, state, smoothing: float, anisotropy_scale: float, anisotropy_min: float, anisotropy_max: float
     ) -> None:
         """Smoothed positions and ellipsoid axes of every particle at ``state`` (see :mod:`.render_particles`)."""
-        smoothing = _real("smoothing", smoothing, 0.0, 1.0)
-        anisotropy_scale = _real("anisotropy_scale", anisotropy_scale, 0.0, lo_open=True)
-        anisotropy_min = _real("anisotropy_min", anisotropy_min, 0.0, 1.0, lo_open=True)
-        anisotropy_max = _real("anisotropy_max", anisotropy_max, 1.0)
+        smoothing = real_in_range("smoothing", smoothing, 0.0, 1.0)
+        anisotropy_scale = real_in_range("anisotropy_scale", anisotropy_scale, 0.0, lo_open=True)
+        anisotropy_min = real_in_range("anisotropy_min", anisotropy_min, 0.0, 1.0, lo_open=True)
+        anisotropy_max = real_in_range("anisotropy_max", anisotropy_max, 1.0)
         if self.render_positions is None:
             with wp.ScopedDevice(self.device):
                 n = self.model.particle_count
@@ -1007,7 +775,7 @@ class FluidSolver:
         )
         # the scratch of the neighbourhood is rebuilt by the next step, so using it here changes nothing
         self.build_neighborhood(state.particle_q)
-        self._slots_hold_positions = False
+        self.slot_content = SlotContent.STALE
         wp.launch(
             compute_fluid_render_particles,
             dim=self.fluid_count,
@@ -1062,114 +830,22 @@ class FluidSolver:
 
     # --- diagnostics -------------------------------------------------------------------------------
 
-    def _report_fast_particles(self) -> int:
-        """Particle substeps that ended faster than one rest distance per substep; warns when they grew since last."""
-        count = int(self.fast_count.numpy()[0])
-        if count > self._fast_reported:
-            limit = self.config.fluid_max_displacement
-            if math.isfinite(limit):
-                action = f"they were slowed to fluid_max_displacement={limit:g} rest distances per substep"
-            elif self.continuous_collision is not None:
-                action = (
-                    "continuous collision kept them out of static and kinematic shapes; past that a particle "
-                    "can cross a dynamic body before its contact is found (fluid_max_displacement=1 prevents it)"
-                )
-            else:
-                action = "past that a particle can cross a thin wall (fluid_max_displacement=1 prevents it)"
-            warnings.warn(
-                f"{count - self._fast_reported} fluid particle substeps since the last report travelled more than "
-                f"one rest distance: the substep is too long for the flow's speed (use more substeps); {action}",
-                RuntimeWarning,
-                stacklevel=3,
-            )
-        self._fast_reported = count
-        return count
-
-    def _report_peaks(self) -> tuple[int, float]:
-        """Particle substeps compressed past ``PEAK_COMPRESSION`` since the last report, and their peak; warns."""
-        v = self._peaks.numpy()
-        count, peak = int(v[:COMPRESSION_BINS].sum()), float(v[COMPRESSION_BINS:].max())
-        if count:
-            warnings.warn(
-                f"{count} fluid particle substeps since the last report ended their density solve past "
-                f"{100.0 * PEAK_COMPRESSION:.0f} % compression (peak {100.0 * peak:.0f} %): the fluid was packed too tightly "
-                "(an overlapping start) or hit harder than its iterations and substeps hold (use more of "
-                "either, or a fluid_density_tolerance with fluid_max_iterations > 1)",
-                RuntimeWarning,
-                stacklevel=3,
-            )
-            self._peaks.zero_()
-        return count, peak
-
-    def _report_recoveries(self) -> int:
-        """Fluid particles recovered from non-finite values in all; warns when the count grew since the last report."""
-        count = int(self.nonfinite_count.numpy()[0])
-        if count > self._nonfinite_reported:
-            warnings.warn(
-                f"{count - self._nonfinite_reported} fluid particles since the last report had a non-finite "
-                "position or velocity and were put back at rest where they last were finite",
-                RuntimeWarning,
-                stacklevel=3,
-            )
-        self._nonfinite_reported = count
-        return count
-
-    def _report_dropped_contacts(self) -> int:
-        """Particle-shape contacts the last collision found beyond its buffer (dropped); warns when there were any."""
-        c = self.contacts
-        if c is None or getattr(c, "soft_contact_count", None) is None:
-            return 0
-        found, room = int(c.soft_contact_count.numpy()[0]), int(c.soft_contact_max)
-        if found <= room:
-            return 0
-        warnings.warn(
-            f"the last collision found {found} particle-shape contacts and its buffer holds {room}: "
-            f"{found - room} were dropped, and with them walls (fluid passes through them and misses their "
-            f"density); create the CollisionPipeline with soft_contact_max >= {found}",
-            RuntimeWarning,
-            stacklevel=3,
-        )
-        return found - room
-
-    def _report_compression(self, mean: float, peak: float) -> None:
-        """Warn when the mean compression rises past ``COMPRESSION_WARNING`` (once, until it falls below again)."""
-        over = mean > COMPRESSION_WARNING
-        if over and not self._compression_reported:
-            warnings.warn(
-                f"the fluid is compressed by {100.0 * mean:.1f} % on average (max {100.0 * peak:.0f} %): more "
-                "than the density solve holds (packed too tightly, or too deep for its iterations). A fluid H "
-                "deep is compressed by about g H / c^2 at the bottom, "
-                "with c = iterations x rest distance / substep duration: use more iterations or substeps, or a "
-                "fluid_density_tolerance with fluid_max_iterations > 1, which adds passes where the fluid needs them "
-                "(past about 10 % a deep column in a closed tank collapses and throws particles out)",
-                RuntimeWarning,
-                stacklevel=3,
-            )
-        self._compression_reported = over
-
     def diagnostics(self, state) -> dict:
         """Density and neighbourhood statistics of the fluid at ``state`` (synchronises; not for the hot loop)."""
-        s, n = self.search, self.fluid_count
+        s = self.search
         self.build_neighborhood(state.particle_q)
         # the statistics are of the fluid's own kernel sum (the build cleared the slots' walls)
         self._evaluate_constraint(self._always_active)
-        self._slots_hold_positions = False
-        self._summary.assign(np.array(_SUMMARY_INIT, dtype=np.float32))
-        wp.launch(
-            summarize_fluid_density,
-            dim=n,
-            inputs=[self.params, s.slots, self.density, s.candidate_count],
-            outputs=[self.particle_density, self._summary],
-            device=self.device,
-        )
-        v = self._summary.numpy().astype(np.float64)
+        self.slot_content = SlotContent.STALE
+        v = self.reports.summarize(self.params, s.slots, self.density, s.candidate_count)
         active = int(v[0])
         # with no active particle every sum is 0, and so is every reported value
         per = 1.0 / active if active else 0.0
         some = float(active > 0)
-        self._report_compression(float(v[3] * per), float(v[4] * some))
-        compressed, peak = self._report_peaks()
-        dropped = self._report_dropped_contacts()
+        r = self.reports
+        r.report_compression(float(v[3] * per), float(v[4] * some))
+        compressed, peak = r.report_peaks()
+        dropped = r.report_dropped_contacts(self.contacts)
         return {
             "active_particles": active,
             "rest_density": self.rest_density,
@@ -1182,10 +858,12 @@ class FluidSolver:
             "neighbors_max": int(v[7] * some),
             "neighbor_overflow": int(v[8]),
             "candidates_mean": float(v[9] * per),
-            "nonfinite_recovered": self._report_recoveries(),
+            "nonfinite_recovered": r.report_recoveries(),
             "compressed_particle_substeps": compressed,
             "peak_compression": peak,
-            "fast_particle_substeps": self._report_fast_particles(),
+            "fast_particle_substeps": r.report_fast_particles(
+                self.config.fluid_max_displacement, self.continuous_collision is not None
+            ),
             "density_subiterations": int(self.subiterations_total.numpy()[0]),
             "soft_contacts_dropped": dropped,
             "shape_entries_stopped": self._stopped_entries(),
@@ -1194,58 +872,6 @@ class FluidSolver:
     def _stopped_entries(self) -> int:
         cc = self.continuous_collision
         return 0 if cc is None else int(cc.stopped_count.numpy()[0])
-
-
-#: mean compression max(rho/rho0 - 1, 0) above which :meth:`FluidSolver.diagnostics` warns that the density
-#: solve does not hold the fluid (healthy runs stay below 3 %, docs/validation.md "Where the method fails")
-COMPRESSION_WARNING = 0.05
-
-# summary slots: count, sum|e|, max|e|, sum compression, max compression, nbr min, nbr sum, nbr max,
-# overflowing particles, candidate sum
-_SUMMARY_SIZE = 10
-_SUMMARY_INIT = [0.0, 0.0, 0.0, 0.0, 0.0, 3.0e38, 0.0, 0.0, 0.0, 0.0]
-
-
-@wp.kernel
-def summarize_fluid_density(
-    params: wp.array[FluidParams],
-    slots: FluidSlots,
-    density: wp.array[float],
-    candidate_count: wp.array[wp.int32],
-    # outputs
-    particle_density: wp.array[float],
-    summary: wp.array[float],
-):
-    i = wp.tid()
-    pi = slots.particle[i]
-    if pi < 0:
-        return
-    rho = density[i]
-    # the sums count neighbours at the reference mass; a particle's own density scales with its mass
-    particle_density[pi] = rho * slots.xm[i][3] / params[0].reference_mass
-    e = rho * params[0].inv_rest_density - 1.0
-    n = slots.particle.shape[0]
-    found = int(0)
-    candidates = int(0)
-    overflow = int(0)
-    for lane in range(slots.lanes):
-        c = slots.neighbor_count[lane * n + i]
-        found += c
-        candidates += candidate_count[lane * n + i]
-        if c > slots.lane_capacity:
-            overflow = 1
-    nb = float(found)
-    wp.atomic_add(summary, 0, 1.0)
-    wp.atomic_add(summary, 1, wp.abs(e))
-    wp.atomic_max(summary, 2, wp.abs(e))
-    wp.atomic_add(summary, 3, wp.max(e, 0.0))
-    wp.atomic_max(summary, 4, wp.max(e, 0.0))
-    wp.atomic_min(summary, 5, nb)
-    wp.atomic_add(summary, 6, nb)
-    wp.atomic_max(summary, 7, nb)
-    if overflow != 0:
-        wp.atomic_add(summary, 8, 1.0)
-    wp.atomic_add(summary, 9, float(candidates))
 
 
 def find_fluid_particles(model) -> np.ndarray:

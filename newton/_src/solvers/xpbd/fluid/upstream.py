@@ -33,7 +33,8 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-from .kernels import ParticleApply, applied_particles, solve_particle_particle_contacts_skip_fluid_pairs
+from .contacts import solve_particle_particle_contacts_skip_fluid_pairs
+from .density_constraint import ParticleApply, applied_particles
 
 SUPPORTED_NEWTON_VERSION = "1.8.0"
 
@@ -354,7 +355,7 @@ def activate(xpbd_module, fluid_kwargs: dict, fluid_doc: str, make_fluid, reset_
         xpbd_module: The ``newton._src.solvers.xpbd`` package.
         fluid_kwargs: The ``fluid_*`` constructor keywords and their defaults.
         fluid_doc: Docstring text appended to the constructor's for those keywords.
-        make_fluid: ``make_fluid(solver, model, kwargs)`` sets ``solver._fluid_config`` and ``solver._fluid``
+        make_fluid: ``make_fluid(solver, model, kwargs, tuning, verify)`` sets ``solver._fluid_config`` and ``solver._fluid``
             (``None`` without fluid particles) after upstream's constructor ran.
         reset_fluid: ``reset_fluid(solver, state, world_mask, flags, fluid_source)``, after upstream's reset.
         additions: New attributes (methods, properties) of ``SolverXPBD`` by name.
@@ -372,8 +373,9 @@ def activate(xpbd_module, fluid_kwargs: dict, fluid_doc: str, make_fluid, reset_
     @functools.wraps(upstream_init)
     def __init__(self, model, *args, **kwargs):
         fluid = {k: kwargs.pop(k) for k in fluid_kwargs if k in kwargs}
+        tuning = kwargs.pop("_fluid_tuning", None)  # private: see FluidTuning
         upstream_init(self, model, *args, **kwargs)
-        make_fluid(self, model, fluid, lambda: _verify_once(cls, stock, model.device))
+        make_fluid(self, model, fluid, tuning, lambda: _verify_once(cls, stock, model.device))
 
     def integrate_particles(self, model, state_in, state_out, dt):
         upstream_integrate(self, model, state_in, state_out, dt)

@@ -1,0 +1,439 @@
+# SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
+# SPDX-License-Identifier: Apache-2.0
+
+"""The density constraint of position-based fluids: density, multiplier, correction, cohesion, warm start.
+
+One Jacobi pass is :func:`compute_fluid_density_lambda` (poly6 density and the multiplier of the
+unilateral constraint ``C_i = max(rho_i / rho0 - 1, 0)``, Macklin & Müller 2013, eq. 1-11) then
+:func:`apply_fluid_density_correction` (``dx_i = 1/rho0 sum_j (lambda_i + lambda_j) grad W_ij``, eq. 12,
+with Akinci's cohesion as a bias), over the fluid slots (:mod:`.sph`).
+"""
+
+import warp as wp
+
+from .sph import (
+    FluidParams,
+    FluidSlots,
+    akinci_cohesion,
+    fluid_neighbor,
+    fluid_neighbor_layout,
+    pair_direction,
+    pair_share,
+    poly6,
+    spiky_gradient,
+)
+from .walls import fluid_wall_share
+
+# approximate division and square root in CUDA code (no effect on the CPU; see :mod:`.sph`)
+wp.set_module_options({"fast_math": True})
+
+# bins of the compression sum of density sub-iterations: spreads the atomics over several addresses
+COMPRESSION_BINS = wp.constant(64)
+
+
+# a particle compressed by more than this (of rho/rho0 - 1) in a substep's last density pass is counted, and
+# the peak kept, on the device until the next fluid_diagnostics reports it (healthy flows stay well below)
+PEAK_COMPRESSION = wp.constant(0.1)
+
+
+# the bins' compression sums, then their particle counts
+COMPRESSION_SUMS = wp.constant(128)
+
+
+# ParticleApply.on: the correction pass writes the position SolverXPBD will apply, or the position
+# moved by the pass's correction (density sub-passes)
+APPLY_AS_XPBD = wp.constant(1)
+
+
+APPLY_ADVANCE = wp.constant(2)
+
+
+@wp.func
+def density_constraint_lambda(rho: float, grad_i: wp.vec3, grad_sq: float, p: FluidParams):
+    """Jacobi multiplier of the unilateral density constraint ``C = max(rho / rho0 - 1, 0)``.
+
+    With ``density_ramp`` d > 0 the multiplier is that of ``C^2 / (2 d)`` below d and of ``C - d / 2``
+    above (continuous, and so is its slope): particles near rest density, which switch a constraint
+    with a kink on and off from substep to substep, take it in gradually, and fluid at rest stops
+    humming, for d / 2 more compression where it carries a load (docs/validation.md, "Hydrostatics").
+    """
+    c = wp.max(rho * p.inv_rest_density - 1.0, 0.0)
+    d = p.density_ramp
+    if c < d:
+        c = c * c / (2.0 * d)
+    else:
+        c = c - 0.5 * d
+    return -c / (grad_sq + wp.dot(grad_i, grad_i) + p.epsilon)
+
+
+@wp.func
+def density_term(xi: wp.vec3, xj4: wp.vec4, pi: int, sorted_particle: wp.array[wp.int32], j: int, p: FluidParams):
+    """Neighbour ``j``'s share of slot ``i``'s constraint: ``(grad C_i w.r.t. x_j, m W_ij)``, zero beyond ``h``.
+
+    ``m`` is the reference mass, not ``m_j``: the constraint is on the number density, so that a
+    particle's rest density is in proportion to its own mass and fluids of different density mix.
+    """
+    r = xi - wp.vec3(xj4[0], xj4[1], xj4[2])
+    r2 = wp.dot(r, r)
+    if r2 >= p.h2:
+        return wp.vec4(0.0)
+    g = spiky_gradient(r, r2, pi, sorted_particle, j, p) * (p.reference_mass * p.inv_rest_density)
+    return wp.vec4(g[0], g[1], g[2], p.reference_mass * poly6(r2, p))
+
+
+@wp.func
+def cohesion_weight(rel_i: float, rel_j: float, p: FluidParams):
+    """Share of the cohesion a pair takes, from the pair's relative densities ``rho / rho0``.
+
+    Full where the pair is under-dense by ``cohesion_gate`` or more, none at or above rest density:
+    where the fluid is at rest density the density constraint holds it together, and cohesion
+    there would only compress it (the unilateral constraint pushes back only once compressed).
+    """
+    if p.cohesion <= 0.0:
+        return 0.0
+    under = 1.0 - 0.5 * (rel_i + rel_j)
+    return wp.clamp(under / p.cohesion_gate, 0.0, 1.0)
+
+
+@wp.func
+def correction_term(
+    xi4: wp.vec4,
+    lam_i: float,
+    xj4: wp.vec4,
+    lam_j: float,
+    pi: int,
+    sorted_particle: wp.array[wp.int32],
+    j: int,
+    p: FluidParams,
+    cohesion: float,
+):
+    """Neighbour ``j``'s density correction (top) and its cohesion pull (bottom) on slot ``i``.
+
+    The pull is weighted by ``cohesion`` (the pair's share, :func:`cohesion_weight`) and not yet scaled
+    by the strength. It is evaluated for every pair while cohesion is on, also where the share is 0:
+    a branch on the share diverges within a warp (measured 0.01 ms per frame slower at 100k, 0.05 ms at 1M).
+    """
+    r = wp.vec3(xi4[0] - xj4[0], xi4[1] - xj4[1], xi4[2] - xj4[2])
+    r2 = wp.dot(r, r)
+    if r2 >= p.h2:
+        return wp.spatial_vector(wp.vec3(0.0), wp.vec3(0.0))
+    dist = wp.sqrt(r2)
+    n = pair_direction(r, dist, pi, sorted_particle, j, p)
+    d = p.h - dist
+    share = pair_share(xi4, xj4)
+    dx = n * (p.spiky_grad * d * d * (lam_i + lam_j) * p.reference_mass * p.inv_rest_density * share)
+    coh = wp.vec3(0.0)
+    if p.cohesion > 0.0:
+        coh = n * (-share * cohesion * akinci_cohesion(dist, p))
+    return wp.spatial_vector(dx, coh)
+
+
+@wp.kernel
+def gather_fluid_positions(
+    slots: FluidSlots,
+    active: wp.array[wp.int32],
+    particle_q: wp.array[wp.vec3],
+    particle_mass: wp.array[float],
+):
+    i = wp.tid()
+    pi = slots.particle[i]
+    if pi < 0 or active[0] == 0:
+        return
+    x = particle_q[pi]
+    slots.xm[i] = wp.vec4(x[0], x[1], x[2], particle_mass[pi])
+
+
+@wp.kernel
+def compute_fluid_density_lambda(
+    params: wp.array[FluidParams],
+    slots: FluidSlots,
+    active: wp.array[wp.int32],
+    wall_table: wp.array[float],
+    wall_table_grad: wp.array[float],
+    track_compression: int,
+    track_peaks: int,
+    # outputs
+    density: wp.array[float],
+    lambda_rho: wp.array[wp.vec2],
+    wall_grad: wp.array[wp.vec3],
+    compression_bins: wp.array[float],
+    peaks: wp.array[float],
+):
+    """Poly6 density and the Jacobi multiplier of the unilateral constraint C = max(rho/rho0 - 1, 0).
+
+    The static walls listed for the slot add their share of ``rho / rho0`` (:func:`fluid_wall_share`);
+    its gradient is kept in ``wall_grad`` for the correction. Does nothing while ``active[0]`` is 0.
+    With ``track_compression``, also sums max(rho/rho0 - 1, 0) into ``compression_bins[0, B)`` and
+    counts the particles in ``[B, 2B)`` (``B = COMPRESSION_BINS``, spreading the atomics). With
+    ``track_peaks`` (a substep's last pass), counts the particles compressed by more than
+    ``PEAK_COMPRESSION`` into ``peaks[0, B)`` and keeps their largest compression in ``peaks[B, 2B)``,
+    until :meth:`~.solver_fluid.FluidSolver.diagnostics` reads and clears them.
+    """
+    i = wp.tid()
+    pi = slots.particle[i]
+    if pi < 0 or active[0] == 0:
+        return
+    p = params[0]
+    xi4 = slots.xm[i]
+    xi = wp.vec3(xi4[0], xi4[1], xi4[2])
+    rho = p.reference_mass * poly6(0.0, p)
+    grad_i = wp.vec3(0.0)
+    grad_sq = float(0.0)
+    layout = fluid_neighbor_layout(slots, i)
+    count = layout[2]
+    # two neighbours per trip: their loads are independent and overlap
+    k = int(0)
+    while k + 1 < count:
+        j0 = fluid_neighbor(slots, i, k, layout)
+        j1 = fluid_neighbor(slots, i, k + 1, layout)
+        t0 = density_term(xi, slots.xm[j0], pi, slots.particle, j0, p)
+        t1 = density_term(xi, slots.xm[j1], pi, slots.particle, j1, p)
+        g0 = wp.vec3(t0[0], t0[1], t0[2])
+        g1 = wp.vec3(t1[0], t1[1], t1[2])
+        rho += t0[3] + t1[3]
+        grad_i += g0 + g1
+        grad_sq += wp.dot(g0, g0) + wp.dot(g1, g1)
+        k += 2
+    if k < count:
+        j = fluid_neighbor(slots, i, k, layout)
+        t = density_term(xi, slots.xm[j], pi, slots.particle, j, p)
+        g = wp.vec3(t[0], t[1], t[2])
+        rho += t[3]
+        grad_i += g
+        grad_sq += wp.dot(g, g)
+    # the walls do not move: their gradient only adds to the particle's own
+    wall = fluid_wall_share(slots, i, xi, p, wall_table, wall_table_grad)
+    wall_g = wp.vec3(wall[0], wall[1], wall[2])
+    rho += wall[3] * p.rest_density
+    grad_i += wall_g
+    wall_grad[i] = wall_g
+    density[i] = rho
+    # the multiplier and the relative density, which the correction reads for each neighbour
+    lambda_rho[i] = wp.vec2(density_constraint_lambda(rho, grad_i, grad_sq, p), rho * p.inv_rest_density)
+    if track_compression != 0:
+        b = i % COMPRESSION_BINS
+        wp.atomic_add(compression_bins, b, wp.max(rho * p.inv_rest_density - 1.0, 0.0))
+        wp.atomic_add(compression_bins, COMPRESSION_BINS + b, 1.0)
+    if track_peaks != 0:
+        c = rho * p.inv_rest_density - 1.0
+        if c > PEAK_COMPRESSION:
+            b = i % COMPRESSION_BINS
+            wp.atomic_add(peaks, b, 1.0)
+            wp.atomic_max(peaks, COMPRESSION_BINS + b, c)
+
+
+@wp.func
+def relaxed_correction(dx: wp.vec3, p: FluidParams):
+    """A density correction scaled by ``fluid_relaxation`` and bounded to ``max_correction`` per pass."""
+    dx *= p.relaxation
+    dx_len = wp.length(dx)
+    if dx_len > p.max_correction:
+        dx *= p.max_correction / dx_len
+    return dx
+
+
+@wp.struct
+class ParticleApply:
+    """Where the correction pass writes each fluid particle's corrected position (besides its delta).
+
+    ``on`` = 1 (``APPLY_AS_XPBD``): the position and velocity after ``SolverXPBD`` applies the iteration's
+    deltas with its ``apply_particle_deltas`` (same formula: ``x = x_pred + delta``,
+    ``v = (x - x_start) / dt``, ``v`` bounded to ``v_max`` and ``x`` moved back with it), in slot
+    order, so the next iteration and the viscosity pass need not gather them. ``on`` = 2
+    (``APPLY_ADVANCE``): the slot's position moved by this pass's correction, for the next density
+    sub-pass (only ``xm`` is used). 0: nothing.
+    """
+
+    on: int
+    x_pred: wp.array[wp.vec3]  # positions the deltas are applied to [m]
+    x_start: wp.array[wp.vec3]  # positions at the start of the substep [m]
+    dt: float  # [s]
+    v_max: float  # [m/s]
+    xm: wp.array[wp.vec4]  # output: the applied positions [m] and masses [kg], in slot order
+    v: wp.array[wp.vec3]  # output: the applied velocities [m/s], in slot order
+
+
+@wp.func
+def applied_particle(apply: ParticleApply, pi: int, delta: wp.vec3):
+    """Position and velocity of particle ``pi`` once ``SolverXPBD`` applies ``delta`` (see :class:`ParticleApply`)."""
+    x0 = apply.x_start[pi]
+    x = apply.x_pred[pi] + delta
+    v = (x - x0) / apply.dt
+    speed = wp.length(v)
+    if speed > apply.v_max:
+        v *= apply.v_max / speed
+        x = x0 + v * apply.dt
+    return x, v
+
+
+@wp.kernel
+def applied_particles(apply: ParticleApply, particle_deltas: wp.array[wp.vec3]):
+    """:func:`applied_particle` of every particle, in particle order (the seam's check of upstream's formula)."""
+    i = wp.tid()
+    x, v = applied_particle(apply, i, particle_deltas[i])
+    apply.xm[i] = wp.vec4(x[0], x[1], x[2], 0.0)
+    apply.v[i] = v
+
+
+@wp.kernel
+def apply_fluid_density_correction(
+    params: wp.array[FluidParams],
+    slots: FluidSlots,
+    active: wp.array[wp.int32],
+    lambda_rho: wp.array[wp.vec2],
+    particle_inv_mass: wp.array[float],
+    wall_grad: wp.array[wp.vec3],
+    apply: ParticleApply,
+    store_warm: int,
+    # outputs
+    particle_deltas: wp.array[wp.vec3],
+    lambda_sum: wp.array[float],
+    particle_lambda: wp.array[float],
+):
+    """Add the density correction and the cohesion bias of slot ``i`` to its particle's Jacobi delta.
+
+    Each pair takes the share of the cohesion :func:`cohesion_weight` gives it.
+
+    ``wall_grad`` is the walls' gradient of the density pass before it. With ``apply.on``, the
+    corrected position goes to ``apply.xm`` (see :class:`ParticleApply`). With the warm start, the
+    multiplier is added to the substep's sum ``lambda_sum``; with ``store_warm`` (the substep's last
+    correction), ``warm_start`` times that sum is kept in ``particle_lambda`` for the next substep
+    (as :func:`store_fluid_warm_start` does, without a pass of its own).
+    """
+    i = wp.tid()
+    pi = slots.particle[i]
+    if pi < 0 or active[0] == 0:
+        return
+    xi4 = slots.xm[i]
+    p = params[0]
+    if particle_inv_mass[pi] == 0.0:
+        if store_warm != 0 and p.warm_start > 0.0:
+            particle_lambda[pi] = p.warm_start * lambda_sum[i]
+        if apply.on == APPLY_AS_XPBD:
+            x, v = applied_particle(apply, pi, particle_deltas[pi])
+            apply.xm[i] = wp.vec4(x[0], x[1], x[2], xi4[3])
+            apply.v[i] = v
+        elif apply.on == APPLY_ADVANCE:
+            apply.xm[i] = xi4
+        return
+    lr_i = lambda_rho[i]
+    lam_i = lr_i[0]
+    rel_i = lr_i[1]
+    wall_g = wall_grad[i]
+    acc = wp.spatial_vector(wp.vec3(0.0), wp.vec3(0.0))
+    layout = fluid_neighbor_layout(slots, i)
+    count = layout[2]
+    # two neighbours per trip: their loads are independent and overlap
+    k = int(0)
+    while k + 1 < count:
+        j0 = fluid_neighbor(slots, i, k, layout)
+        j1 = fluid_neighbor(slots, i, k + 1, layout)
+        lr0 = lambda_rho[j0]
+        lr1 = lambda_rho[j1]
+        c0 = cohesion_weight(rel_i, lr0[1], p)
+        c1 = cohesion_weight(rel_i, lr1[1], p)
+        acc += correction_term(xi4, lam_i, slots.xm[j0], lr0[0], pi, slots.particle, j0, p, c0)
+        acc += correction_term(xi4, lam_i, slots.xm[j1], lr1[0], pi, slots.particle, j1, p, c1)
+        k += 2
+    if k < count:
+        j = fluid_neighbor(slots, i, k, layout)
+        lr = lambda_rho[j]
+        c = cohesion_weight(rel_i, lr[1], p)
+        acc += correction_term(xi4, lam_i, slots.xm[j], lr[0], pi, slots.particle, j, p, c)
+    dx = wp.spatial_top(acc) + wall_g * lam_i
+    coh = wp.spatial_bottom(acc)
+    dx = relaxed_correction(dx, p)
+    if p.cohesion > 0.0:
+        # the bias is bounded so a crowded neighbourhood cannot pull harder than one rest spacing allows
+        coh *= p.cohesion
+        coh_len = wp.length(coh)
+        coh_max = 4.0 * p.cohesion
+        if coh_len > coh_max:
+            coh *= coh_max / coh_len
+        dx += coh
+    delta = particle_deltas[pi] + dx
+    particle_deltas[pi] = delta
+    if p.warm_start > 0.0:
+        lam_sum = lambda_sum[i] + lam_i
+        lambda_sum[i] = lam_sum
+        if store_warm != 0:
+            particle_lambda[pi] = p.warm_start * lam_sum
+    if apply.on == APPLY_AS_XPBD:
+        x, v = applied_particle(apply, pi, delta)
+        apply.xm[i] = wp.vec4(x[0], x[1], x[2], xi4[3])
+        apply.v[i] = v
+    elif apply.on == APPLY_ADVANCE:
+        apply.xm[i] = wp.vec4(xi4[0] + dx[0], xi4[1] + dx[1], xi4[2] + dx[2], xi4[3])
+
+
+@wp.kernel
+def apply_fluid_warm_start(
+    params: wp.array[FluidParams],
+    slots: FluidSlots,
+    active: wp.array[wp.int32],
+    warm_lambda: wp.array[float],
+    particle_inv_mass: wp.array[float],
+    wall_table: wp.array[float],
+    wall_table_grad: wp.array[float],
+    # outputs
+    particle_deltas: wp.array[wp.vec3],
+    moved_xm: wp.array[wp.vec4],
+    lambda_sum: wp.array[float],
+):
+    """Start the substep's density solve from the multipliers of the last one (warm start).
+
+    Moves slot ``i`` by the correction of the carried multipliers ``warm_lambda`` (gathered into slot
+    order by the sort, :meth:`~.neighbors.FluidNeighborSearch.carry_values`; as
+    :func:`apply_fluid_density_correction` does with fresh ones, without cohesion) before the first
+    density evaluation, writing the moved position to ``moved_xm`` (the other position buffer: the
+    neighbours' positions are read from ``slots.xm`` meanwhile): a load the fluid carried last
+    substep, like the weight of a deep column, is already held when the iterations start, which then
+    only correct what changed. Starts the substep's sum of multipliers from the carried one.
+    """
+    i = wp.tid()
+    pi = slots.particle[i]
+    if pi < 0:
+        return
+    xi4 = slots.xm[i]
+    lam_i = warm_lambda[i]
+    lambda_sum[i] = lam_i
+    p = params[0]
+    if active[0] == 0 or p.warm_start <= 0.0 or particle_inv_mass[pi] == 0.0:
+        moved_xm[i] = xi4
+        return
+    xi = wp.vec3(xi4[0], xi4[1], xi4[2])
+    wall = fluid_wall_share(slots, i, xi, p, wall_table, wall_table_grad)
+    dx = wp.vec3(wall[0], wall[1], wall[2]) * lam_i
+    layout = fluid_neighbor_layout(slots, i)
+    count = layout[2]
+    for k in range(count):
+        j = fluid_neighbor(slots, i, k, layout)
+        # the multipliers alone: no cohesion
+        dx += wp.spatial_top(correction_term(xi4, lam_i, slots.xm[j], warm_lambda[j], pi, slots.particle, j, p, 0.0))
+    dx = relaxed_correction(dx, p)
+    particle_deltas[pi] = particle_deltas[pi] + dx
+    moved_xm[i] = wp.vec4(xi[0] + dx[0], xi[1] + dx[1], xi[2] + dx[2], xi4[3])
+
+
+@wp.kernel
+def store_fluid_warm_start(
+    params: wp.array[FluidParams],
+    slots: FluidSlots,
+    lambda_sum: wp.array[float],
+    # outputs
+    particle_lambda: wp.array[float],
+):
+    """Keep ``warm_start`` times each particle's multipliers of this substep for the next one.
+
+    For the tolerance modes, whose last correction is decided on the device; with fixed counts the
+    last correction pass stores them itself. A particle left out of this substep's solve (inactive,
+    non-finite) carries nothing: the sort set its value to 0.
+    """
+    i = wp.tid()
+    p = params[0]
+    if p.warm_start <= 0.0:
+        return
+    pi = slots.particle[i]
+    if pi < 0:
+        return
+    particle_lambda[pi] = p.warm_start * lambda_sum[i]
