@@ -32,7 +32,7 @@ from run_record import machine_record
 import newton
 from newton._src.solvers.xpbd.fluid.calibration import wall_density_tables
 from newton._src.solvers.xpbd.fluid.config import DEFAULT_NONAFFINE_DAMPING, FluidTuning
-from newton._src.solvers.xpbd.fluid.solver_fluid import SlotContent
+from newton._src.solvers.xpbd.fluid.sph import SlotContent
 from newton._src.solvers.xpbd.fluid.upstream import upstream_step_only
 from newton.examples.fluid.example_fluid_xpbd_dam_break import TANK_HALF_LENGTH, add_dam_break
 from newton.examples.fluid.progress import track
@@ -351,7 +351,7 @@ def run(args) -> dict:
         "shape_entries_stopped": stats["shape_entries_stopped"],
         "cuda_graph": graph is not None,
         "scan_lanes": getattr(solver._fluid.search, "lanes", 1),
-        "concurrent_passes": solver._fluid._side_stream is not None,
+        "concurrent_passes": solver._fluid.side_stream is not None,
         "sim_time_s": frames_simulated * frame_dt,
         "ms_per_frame_median": statistics.median(trials),
         "ms_per_frame_trials": trials,

@@ -87,7 +87,7 @@ def velocity_pass(device, velocity, damping, viscosity=0.0, steps=1.0):
     v = velocity(q)
     sim.state_0.particle_qd.assign(v.astype(np.float32))
     fluid.build_neighborhood(sim.state_0.particle_q)
-    fluid._evaluate_constraint(fluid._always_active)
+    fluid.evaluate_constraint(fluid.always_active)
     slot_particle = fluid.search.slots.particle.numpy()
     sorted_v = np.zeros((fluid.fluid_count, 3), dtype=np.float32)
     sorted_v[slot_particle >= 0] = v[slot_particle[slot_particle >= 0]]

@@ -15,8 +15,13 @@ from newton._src.solvers.xpbd.fluid.calibration import wall_density_tables
 from newton._src.solvers.xpbd.fluid.config import FULL_NEIGHBOR_FACTOR, FluidTuning
 from newton._src.solvers.xpbd.fluid.density_constraint import density_constraint_lambda
 from newton._src.solvers.xpbd.fluid.neighbors import FluidNeighborSearch
-from newton._src.solvers.xpbd.fluid.solver_fluid import SlotContent
-from newton._src.solvers.xpbd.fluid.sph import FluidParams, FluidSlots, fluid_neighbor, fluid_neighbor_layout
+from newton._src.solvers.xpbd.fluid.sph import (
+    FluidParams,
+    FluidSlots,
+    SlotContent,
+    fluid_neighbor,
+    fluid_neighbor_layout,
+)
 from newton._src.solvers.xpbd.fluid.walls import WALL_CONTACTS_PER_SLOT, fluid_wall_share
 from newton.examples.fluid.common import add_tank
 
@@ -1155,10 +1160,14 @@ def test_warm_start_kept_by_the_last_correction(test, device):
     test.assertEqual(lam_fixed[0], 0.0)
     test.assertEqual(lam_tol[0], 0.0)
     test.assertGreater(np.count_nonzero(lam_fixed), 50)  # the compressed block carries multipliers
-    # (bitwise on the CPU but for the last float bits; on a GPU the sums' order differs between the two runs,
-    # and the packed block amplifies it: H100, multipliers of about 0.01 up to 6e-6 apart, positions 3.3e-4 m)
+    # (bitwise on the CPU but for the last float bits. On a GPU the two runs differ in rounding (the fixed count's
+    # correction pass computes the applied positions and velocities in our fast-math module where the tolerance
+    # mode takes upstream's, and the sums' order differs), and the packed block amplifies it over 8 substeps: H100, multipliers of up to 0.012 have been 6e-6 and
+    # 3.0e-4 apart in two sessions, positions 3.3e-4 m. A last correction that kept no multipliers, or kept them
+    # twice, is off by the whole multiplier.)
     exact = wp.get_device(device).is_cpu
-    np.testing.assert_allclose(lam_fixed, lam_tol, rtol=1.0e-5, atol=1.0e-9 if exact else 2.0e-5)
+    gpu_atol = 0.05 * float(np.abs(lam_fixed).max())
+    np.testing.assert_allclose(lam_fixed, lam_tol, rtol=1.0e-5, atol=1.0e-9 if exact else gpu_atol)
     np.testing.assert_allclose(q_fixed, q_tol, atol=1.0e-6 if exact else 1.0e-3)
 
 
@@ -1274,7 +1283,7 @@ def test_concurrent_passes_match_one_stream(test, device):
             model.soft_contact_mu = 0.0
             tuning = FluidTuning(concurrent_passes=concurrent)
             sim = Sim(model, substeps=4, contacts=True, fluid_viscosity=0.05, _fluid_tuning=tuning, **kwargs)
-            test.assertEqual(sim.solver._fluid._side_stream is not None, concurrent and device.is_cuda)
+            test.assertEqual(sim.solver._fluid.side_stream is not None, concurrent and device.is_cuda)
             sim.step(3)
             eager = sim.q()
             if device.is_cuda:

@@ -12,7 +12,7 @@ decision is one block that sums the compression bins of the pass it follows
 import warp as wp
 
 from .density_constraint import COMPRESSION_BINS, COMPRESSION_SUMS
-from .sph import FluidParams
+from .sph import FluidParams, SlotContent
 
 # approximate division and square root in CUDA code (no effect on the CPU; see :mod:`.sph`)
 wp.set_module_options({"fast_math": True})
@@ -142,3 +142,179 @@ def decide_fluid_density_converged(
         active[0] = 0
         return
     iterations_total[0] = iterations_total[0] + 1
+
+
+# ---------------------------------------------------------------------------------------------------------------------
+# the schedules, one per mode: each owns its device flags and launches its decisions
+
+
+def launch_decide_after_first_pass(fluid, go_on: wp.array, loop_count: wp.array, more: int, stop_uncompressed: bool):
+    """:func:`decide_after_first_fluid_pass` on ``fluid``'s compression bins."""
+    wp.launch_tiled(
+        decide_after_first_fluid_pass,
+        dim=1,
+        block_dim=COMPRESSION_BINS,
+        inputs=[fluid.params, more, int(stop_uncompressed)],
+        outputs=[fluid.compression_bins, go_on, loop_count, fluid.subiterations_total],
+        device=fluid.device,
+    )
+
+
+class FixedPasses:
+    """One density pass per XPBD iteration, each correcting (no tolerance, ``fluid_max_iterations`` 1).
+
+    The correction pass writes the positions (and velocities) SolverXPBD will apply, so the next
+    iteration and the velocity pass gather nothing; on CUDA the next iteration's density pass runs
+    beside upstream's application of the deltas and its next contacts.
+
+    Args:
+        fluid: The :class:`~.solver_fluid.FluidSolver` whose passes it schedules.
+    """
+
+    #: whether the passes measure the compression and decide on the device (a later pass may not correct)
+    tolerance = False
+
+    def __init__(self, fluid):
+        self.fluid = fluid
+
+    def active(self, first: bool) -> wp.array:
+        """The flag this iteration's passes run under (``first``: the substep's first iteration)."""
+        return self.fluid.always_active
+
+    def decide(self, first: bool, active: wp.array) -> None:
+        """Launch the decision on the iteration's density pass (none: every pass corrects)."""
+
+    def run(self, first: bool, active: wp.array, particle_q, particle_deltas, apply, iterations: int) -> None:
+        """The density pass and correction of one XPBD iteration (see :meth:`~.solver_fluid.FluidSolver.solve_density`)."""
+        f = self.fluid
+        if not f.evaluated_ahead:
+            f.evaluate_constraint(active, track_compression=self.tolerance, last=f.iteration == iterations)
+        f.evaluated_ahead = False
+        self.decide(first, active)
+        # (a pass that may be skipped writes no applied positions)
+        predict = apply is not None and active is f.always_active
+        # (a schedule that decides on the device does not know the last correction: a pass after the step stores)
+        store = f.warm_start_on() and not self.tolerance and f.iteration == iterations
+        f.correct(particle_deltas, active, particle_q if predict else None, apply, store_warm=store)
+        f.warm_stored = f.warm_stored or store
+        if predict:
+            f.swap_slot_buffers()
+            f.slot_content = SlotContent.APPLIED_WITH_VELOCITIES if apply[3] else SlotContent.APPLIED
+            if not self.tolerance and f.iteration < iterations and f.side_stream is not None:
+                # the next iteration's density pass needs only these positions: it runs beside
+                # upstream's application of the deltas and its next contacts
+                with f.beside():
+                    f.evaluate_constraint(active, last=f.iteration + 1 == iterations)
+                f.evaluated_ahead = True
+
+
+class IterationTolerance(FixedPasses):
+    """One density pass per XPBD iteration; after the substep's first, they stop once the fluid meets the tolerance.
+
+    ``fluid_density_tolerance`` > 0 with ``fluid_max_iterations`` 1: the substep's first pass always
+    corrects and decides whether the later ones run; each later one measures the mean compression and
+    skips itself and the rest of the substep's passes once it is within the tolerance.
+    """
+
+    tolerance = True
+
+    def __init__(self, fluid):
+        super().__init__(fluid)
+        with wp.ScopedDevice(fluid.device):
+            # cleared once a substep's density has converged
+            self.substep_active = wp.ones(1, dtype=wp.int32)
+            self.loop_count = wp.zeros(1, dtype=wp.int32)
+
+    def active(self, first: bool) -> wp.array:
+        return self.fluid.always_active if first else self.substep_active
+
+    def decide(self, first: bool, active: wp.array) -> None:
+        f = self.fluid
+        if first:
+            # corrects whatever it measured; decides whether the later iterations do
+            launch_decide_after_first_pass(f, self.substep_active, self.loop_count, 1, stop_uncompressed=False)
+            return
+        wp.launch_tiled(
+            decide_fluid_density_converged,
+            dim=1,
+            block_dim=COMPRESSION_BINS,
+            inputs=[f.params],
+            outputs=[f.compression_bins, active, f.subiterations_total],
+            device=f.device,
+        )
+
+
+class SubPasses:
+    """Up to ``fluid_max_iterations`` density passes per XPBD iteration, stopping once the fluid meets the tolerance.
+
+    The iteration's first pass corrects and writes its moved positions into the other slot buffer,
+    where the loop's passes go on while the mean compression they measure is above
+    ``fluid_density_tolerance``. The count is decided on the device: inside a graph capture the loop is
+    a conditional while node; on a GPU outside one every allowed pass is launched and the passes after
+    the decision do nothing (no synchronisation); on the CPU the loop reads its flag and stops.
+    """
+
+    tolerance = True
+
+    def __init__(self, fluid):
+        self.fluid = fluid
+        with wp.ScopedDevice(fluid.device):
+            self.loop_active = wp.zeros(1, dtype=wp.int32)
+            self.loop_count = wp.zeros(1, dtype=wp.int32)
+            self.pass_corrects = wp.zeros(1, dtype=wp.int32)
+        self._last_iteration = False
+
+    def active(self, first: bool) -> wp.array:
+        return self.fluid.always_active
+
+    def run(self, first: bool, active: wp.array, particle_q, particle_deltas, apply, iterations: int) -> None:
+        f = self.fluid
+        more = f.config.fluid_max_iterations - 1
+        self._last_iteration = f.iteration == iterations
+        f.evaluate_constraint(f.always_active, track_compression=True, last=self._last_iteration)
+        launch_decide_after_first_pass(f, self.loop_active, self.loop_count, more, stop_uncompressed=True)
+        f.correct(particle_deltas, f.always_active, advance=True)
+        f.swap_slot_buffers()
+        if f.device.is_capturing or f.device.is_cpu:
+            # a conditional while node in a graph; on the CPU the flag is read where it lies
+            wp.capture_while(self.loop_active, self._pass_pair, particle_deltas=particle_deltas)
+        else:
+            # no graph: launch every allowed pass (reading the flag would synchronise); the ones
+            # after the decision do nothing
+            for _ in range(f.config.fluid_max_iterations // 2):
+                self._pass_pair(particle_deltas)
+
+    def _pass_pair(self, particle_deltas: wp.array) -> None:
+        # each pass's correction writes the moved positions into the other buffer, which the next pass
+        # reads: two passes per trip of the loop bring them back (a second pass after the loop's
+        # decision to stop does nothing; the positions after the loop are gathered again when needed)
+        f = self.fluid
+        start = f.current
+        for source in (start, 1 - start):
+            f.current = source
+            self._pass(particle_deltas)
+        f.current = start
+
+    def _pass(self, particle_deltas: wp.array) -> None:
+        f = self.fluid
+        # (the density pass measures the walls where the last pass left the particles)
+        f.evaluate_constraint(self.loop_active, track_compression=True, last=self._last_iteration)
+        wp.launch_tiled(
+            decide_fluid_subiteration,
+            dim=1,
+            block_dim=COMPRESSION_BINS,
+            inputs=[f.params, f.config.fluid_max_iterations - 1],
+            outputs=[f.compression_bins, self.loop_active, self.pass_corrects, self.loop_count, f.subiterations_total],
+            device=f.device,
+        )
+        f.correct(particle_deltas, self.pass_corrects, advance=True)
+
+
+def density_schedule(fluid):
+    """The schedule of ``fluid``'s configuration (fixed at construction)."""
+    c = fluid.config
+    if c.fluid_max_iterations > 1:
+        return SubPasses(fluid)
+    if c.fluid_density_tolerance > 0.0:
+        return IterationTolerance(fluid)
+    return FixedPasses(fluid)

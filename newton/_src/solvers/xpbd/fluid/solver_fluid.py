@@ -13,7 +13,6 @@ applied (:meth:`FluidSolver.solve_density`) and after the step (:meth:`FluidSolv
 from __future__ import annotations
 
 import contextlib
-import enum
 import math
 
 import numpy as np
@@ -40,7 +39,6 @@ from .continuous_collision import ContinuousCollision, still_shapes
 from .density_constraint import (
     APPLY_ADVANCE,
     APPLY_AS_XPBD,
-    COMPRESSION_BINS,
     COMPRESSION_SUMS,
     ParticleApply,
     apply_fluid_density_correction,
@@ -60,8 +58,8 @@ from .diffuse import (
 from .neighbors import FluidNeighborSearch, neighbor_list_layout
 from .render_particles import compute_fluid_render_particles, reset_render_particles
 from .reset import reset_diffuse_worlds, reset_fluid_worlds
-from .schedule import decide_after_first_fluid_pass, decide_fluid_density_converged, decide_fluid_subiteration
-from .sph import MAX_DISPLACEMENT_OFF, FluidParams, FluidSlots
+from .schedule import density_schedule
+from .sph import MAX_DISPLACEMENT_OFF, FluidParams, FluidSlots, SlotContent
 from .velocity_passes import (
     apply_fluid_viscosity,
     confine_vorticity_and_recover,
@@ -69,19 +67,6 @@ from .velocity_passes import (
     recover_nonfinite_fluid,
 )
 from .walls import FluidWallContacts
-
-
-class SlotContent(enum.Enum):
-    """What the current slot buffer (``slots.xm``, and ``sorted_v``) holds between the passes of a step."""
-
-    #: out of date: a pass that reads positions gathers them first
-    STALE = enum.auto()
-    #: the positions the neighbourhood build gathered: a substep's first iteration uses them as they are
-    BUILT = enum.auto()
-    #: the positions SolverXPBD applied after the last iteration, written by its correction pass
-    APPLIED = enum.auto()
-    #: those positions, and in ``sorted_v`` the velocities it applied (the velocity pass gathers nothing)
-    APPLIED_WITH_VELOCITIES = enum.auto()
 
 
 class FluidSolver:
@@ -178,16 +163,11 @@ class FluidSolver:
             self.lambda_sum = wp.zeros(n if warm else 0, dtype=float)
             if warm:
                 self.search.carry_values(self.particle_lambda, self.warm_lambda)
-            # state of the density sub-iteration loop: an "always on" flag for the single pass,
-            # and the loop's flag, correction count, compression bins and a total for diagnostics
-            self._always_active = wp.ones(1, dtype=wp.int32)
-            # tolerance mode with one pass per iteration: cleared once a substep's density has converged
-            self._substep_active = wp.ones(1, dtype=wp.int32)
+            # the flag of the passes that always run; the compression sums the schedules decide on, and the
+            # total of the passes that corrected (for the diagnostics)
+            self.always_active = wp.ones(1, dtype=wp.int32)
             self.tolerance_mode = config.fluid_max_iterations > 1 or config.fluid_density_tolerance > 0.0
-            self._loop_active = wp.zeros(1, dtype=wp.int32)
-            self._loop_count = wp.zeros(1, dtype=wp.int32)
-            self._pass_corrects = wp.zeros(1, dtype=wp.int32)
-            self._compression_bins = wp.zeros(COMPRESSION_SUMS, dtype=float)
+            self.compression_bins = wp.zeros(COMPRESSION_SUMS, dtype=float)
             # particles past PEAK_COMPRESSION in a substep's last density pass, and their peak, per bin:
             # kept on the device between two diagnostics calls (see compute_fluid_density_lambda)
             self.subiterations_total = wp.zeros(1, dtype=wp.int32)
@@ -211,7 +191,7 @@ class FluidSolver:
         other.wall_count = self.search.wall_count
         other.wall_plane = self.search.wall_plane
         other.xm = self.xm_applied
-        #: the slot views of the two position buffers; ``_current`` is the one holding the positions
+        #: the slot views of the two position buffers; ``current`` is the one holding the positions
         self._slot_views = (self.search.slots, other)
         self._apply_off = ParticleApply()
         self._apply_off.on = 0
@@ -222,10 +202,9 @@ class FluidSolver:
             advance.on = APPLY_ADVANCE
             advance.xm = self._slot_views[target].xm
             self._apply_advance.append(advance)
-        self._current = 0
-        self._iteration = 0
-        self._last_iteration = False
-        self._warm_stored = False
+        self.current = 0
+        self.iteration = 0
+        self.warm_stored = False
         #: what the current slot buffer holds (see SlotContent)
         self.slot_content = SlotContent.STALE
         self.diffuse = None
@@ -255,10 +234,12 @@ class FluidSolver:
         self.continuous_collision = ContinuousCollision.build(model) if config.fluid_continuous_collision else None
         # the second stream (see FluidTuning.concurrent_passes), and whether work on it has not been joined yet
         concurrent = self.device.is_cuda and self.tuning.concurrent_passes
-        self._side_stream = wp.Stream(self.device) if concurrent else None
+        self.side_stream = wp.Stream(self.device) if concurrent else None
         self._side_pending = False
         # the density pass of the next iteration ran ahead on the second stream
-        self._evaluated_ahead = False
+        self.evaluated_ahead = False
+        #: how many density passes an iteration runs, and who decides (:mod:`.schedule`)
+        self.schedule = density_schedule(self)
         self.update_params()
 
     @property
@@ -304,11 +285,6 @@ class FluidSolver:
 
     # --- passes inside the upstream step ---------------------------------------------------------
 
-    @property
-    def iteration_tolerance(self) -> bool:
-        """Whether the tolerance stops the substep's XPBD iterations' density passes (one pass per iteration)."""
-        return self.config.fluid_max_iterations == 1 and self.tolerance_mode
-
     def check_change(self, name: str, value) -> None:
         """Refuse to switch the tolerance mode or the warm start on after construction (their passes are not launched)."""
         if name == "fluid_warm_start" and not self.warm_start_mode and value != 0.0:
@@ -323,23 +299,23 @@ class FluidSolver:
             )
 
     @contextlib.contextmanager
-    def _beside(self):
+    def beside(self):
         """Launches inside go to the second stream, after everything launched so far on the current one.
 
         They run beside what the current stream does next, until :meth:`_join`. Without a second
         stream (CPU, or ``FluidTuning.concurrent_passes`` off) they go to the current stream.
         """
-        if self._side_stream is None:
+        if self.side_stream is None:
             yield
             return
-        with wp.ScopedStream(self._side_stream, sync_enter=True):
+        with wp.ScopedStream(self.side_stream, sync_enter=True):
             yield
         self._side_pending = True
 
     def _join(self) -> None:
-        """Make the current stream wait for the work launched by :meth:`_beside` (in a graph: an edge)."""
+        """Make the current stream wait for the work launched by :meth:`beside` (in a graph: an edge)."""
         if self._side_pending:
-            self.device.stream.wait_stream(self._side_stream)
+            self.device.stream.wait_stream(self.side_stream)
             self._side_pending = False
 
     def build_neighborhood(self, particle_q: wp.array, particle_q_start=None, particle_qd=None, body_q=None) -> None:
@@ -350,7 +326,7 @@ class FluidSolver:
         static walls of the step's contacts are listed for each slot by the same launch as the
         neighbours (a build for diagnostics or rendering lists no walls: the contacts belong to a step).
         In a step, the sort and the scan run beside upstream's work up to the first density pass
-        (particle-shape contacts, which only read the positions): :meth:`_beside`.
+        (particle-shape contacts, which only read the positions): :meth:`beside`.
         """
         self._join()
         m, contacts = self.model, self.contacts
@@ -369,20 +345,20 @@ class FluidSolver:
         s = self.search
         # (the travel limit writes the positions upstream goes on with: not beside it)
         s.compute_keys(particle_q, m.particle_flags, m.particle_world, self.params, particle_q_start, particle_qd)
-        with self._beside() if particle_q_start is not None else contextlib.nullcontext():
+        with self.beside() if particle_q_start is not None else contextlib.nullcontext():
             s.sort(particle_q, m.particle_mass, m.particle_world)
             s.scan(walls)
         # the build gathered these positions into slot order: the first iteration uses them as they are
         self.slot_content = SlotContent.BUILT
-        self._iteration = 0
-        self._warm_stored = False
-        self._current = 0
-        self._evaluated_ahead = False
+        self.iteration = 0
+        self.warm_stored = False
+        self.current = 0
+        self.evaluated_ahead = False
 
     @property
     def slots(self) -> FluidSlots:
         """The slots with the current position buffer (see :meth:`solve_density`)."""
-        return self._slot_views[self._current]
+        return self._slot_views[self.current]
 
     def solve_density(
         self, particle_q: wp.array, particle_deltas: wp.array, apply: tuple | None = None, iterations: int = 0
@@ -397,18 +373,14 @@ class FluidSolver:
         velocities after the iterations), so the next iteration and the viscosity pass gather nothing:
         two launches less per substep.
 
-        With ``fluid_max_iterations`` 1 this is one Jacobi pass (with a tolerance set at construction,
-        skipped once the substep's mean compression has met it; the substep's first pass always
-        corrects). Otherwise up to that many passes run on the gathered positions, each starting where
-        the last one left them; the first always corrects, and the ones after it stop early once the
-        mean compression is at most ``fluid_density_tolerance`` (if above 0); each pass
-        measures the walls again where the last one left the particles. The count is decided on the
-        device: inside a graph capture the loop is a conditional while node; on a GPU outside one
-        every allowed pass is launched and the passes after the decision do nothing (no
-        synchronisation); on the CPU the loop reads its flag and stops. With ``fluid_warm_start``, the
-        substep's first iteration first moves the fluid by the multipliers carried from the last one,
-        and with fixed counts the correction of iteration ``iterations`` (the substep's last; 0:
-        unknown) keeps the multipliers for the next substep (else a pass after the step does).
+        How many passes an iteration runs, and who decides, is :attr:`schedule`'s:
+        :class:`~.schedule.FixedPasses` (one correcting pass), :class:`~.schedule.IterationTolerance`
+        (one pass, skipped once the substep met ``fluid_density_tolerance``) or
+        :class:`~.schedule.SubPasses` (up to ``fluid_max_iterations`` passes, decided on the device). With
+        ``fluid_warm_start``, the substep's first iteration first moves the fluid by the multipliers
+        carried from the last one, and with fixed counts the correction of iteration ``iterations`` (the
+        substep's last; 0: unknown) keeps the multipliers for the next substep (else a pass after the
+        step does).
         """
         self._join()
         m, n = self.model, self.fluid_count
@@ -416,7 +388,7 @@ class FluidSolver:
         # pass always corrects (see decide_after_first_fluid_pass), and with the tolerance on the XPBD
         # iterations a converged substep skips the rest of its passes
         first = self.slot_content is SlotContent.BUILT
-        active = self._substep_active if self.iteration_tolerance and not first else self._always_active
+        active = self.schedule.active(first)
         if self.slot_content is SlotContent.STALE:
             wp.launch(
                 gather_fluid_positions,
@@ -424,102 +396,18 @@ class FluidSolver:
                 inputs=[self.slots, active, particle_q, m.particle_mass],
                 device=self.device,
             )
-        self._iteration += 1
-        if first and self._warm_start_on():
+        self.iteration += 1
+        if first and self.warm_start_on():
             self._warm_start(particle_deltas, active)
         # after this iteration's correction, the slots' positions are out of date (unless it writes the applied ones)
         self.slot_content = SlotContent.STALE
-        if self.config.fluid_max_iterations == 1:
-            if not self._evaluated_ahead:
-                self._evaluate_constraint(
-                    active, track_compression=self.iteration_tolerance, last=self._iteration == iterations
-                )
-            self._evaluated_ahead = False
-            if self.iteration_tolerance:
-                if first:
-                    # corrects below whatever it measured; decides whether the later iterations do
-                    self._decide_after_first_pass(self._substep_active, 1, stop_uncompressed=False)
-                else:
-                    wp.launch_tiled(
-                        decide_fluid_density_converged,
-                        dim=1,
-                        block_dim=COMPRESSION_BINS,
-                        inputs=[self.params],
-                        outputs=[self._compression_bins, active, self.subiterations_total],
-                        device=self.device,
-                    )
-            # (a pass that may be skipped writes no applied positions)
-            predict = apply is not None and active is self._always_active
-            # (the tolerance modes decide the last correction on the device: a pass after the step stores)
-            store = self._warm_start_on() and not self.tolerance_mode and self._iteration == iterations
-            self._correct(particle_deltas, active, particle_q if predict else None, apply, store_warm=store)
-            self._warm_stored = self._warm_stored or store
-            if predict:
-                self._current = 1 - self._current
-                self.slot_content = SlotContent.APPLIED_WITH_VELOCITIES if apply[3] else SlotContent.APPLIED
-                if not self.iteration_tolerance and self._iteration < iterations and self._side_stream is not None:
-                    # the next iteration's density pass needs only these positions: it runs beside
-                    # upstream's application of the deltas and its next contacts
-                    with self._beside():
-                        self._evaluate_constraint(active, last=self._iteration + 1 == iterations)
-                    self._evaluated_ahead = True
-            return
-        # the iteration's first pass corrects; it writes its moved positions into the other position
-        # buffer, where the loop's passes go on (while it measured the mean compression above the tolerance)
-        self._last_iteration = self._iteration == iterations
-        self._evaluate_constraint(self._always_active, track_compression=True, last=self._last_iteration)
-        self._decide_after_first_pass(self._loop_active, self.config.fluid_max_iterations - 1, stop_uncompressed=True)
-        self._correct(particle_deltas, self._always_active, advance=True)
-        self._current = 1 - self._current
-        if self.device.is_capturing or self.device.is_cpu:
-            # a conditional while node in a graph; on the CPU the flag is read where it lies
-            wp.capture_while(self._loop_active, self._density_subiteration_pair, particle_deltas=particle_deltas)
-        else:
-            # no graph: launch every allowed pass (reading the flag would synchronise); the ones
-            # after the decision do nothing
-            for _ in range(self.config.fluid_max_iterations // 2):
-                self._density_subiteration_pair(particle_deltas)
+        self.schedule.run(first, active, particle_q, particle_deltas, apply, iterations)
 
-    def _decide_after_first_pass(self, go_on: wp.array, more: int, stop_uncompressed: bool) -> None:
-        wp.launch_tiled(
-            decide_after_first_fluid_pass,
-            dim=1,
-            block_dim=COMPRESSION_BINS,
-            inputs=[self.params, more, int(stop_uncompressed)],
-            outputs=[self._compression_bins, go_on, self._loop_count, self.subiterations_total],
-            device=self.device,
-        )
+    def swap_slot_buffers(self) -> None:
+        """Make the other position buffer the current one (a correction wrote the moved positions there)."""
+        self.current = 1 - self.current
 
-    def _density_subiteration_pair(self, particle_deltas: wp.array) -> None:
-        # each pass's correction writes the moved positions into the other buffer, which the next pass
-        # reads: two passes per trip of the loop bring them back (a second pass after the loop's
-        # decision to stop does nothing; the positions after the loop are gathered again when needed)
-        start = self._current
-        for source in (start, 1 - start):
-            self._current = source
-            self._density_subiteration(particle_deltas)
-        self._current = start
-
-    def _density_subiteration(self, particle_deltas: wp.array) -> None:
-        # (the density pass measures the walls where the last pass left the particles)
-        self._evaluate_constraint(self._loop_active, track_compression=True, last=self._last_iteration)
-        wp.launch_tiled(
-            decide_fluid_subiteration,
-            dim=1,
-            block_dim=COMPRESSION_BINS,
-            inputs=[self.params, self.config.fluid_max_iterations - 1],
-            outputs=[
-                self._compression_bins,
-                self._loop_active,
-                self._pass_corrects,
-                self._loop_count,
-                self.subiterations_total,
-            ],
-            device=self.device,
-        )
-        self._correct(particle_deltas, self._pass_corrects, advance=True)
-
-    def _warm_start_on(self) -> bool:
+    def warm_start_on(self) -> bool:
         # in a graph the passes are captured and check the parameter on the device (so it may change)
         return self.warm_start_mode and (self.device.is_capturing or self.config.fluid_warm_start > 0.0)
 
@@ -541,12 +429,12 @@ class FluidSolver:
                 self.wall_table,
                 self.wall_table_grad,
             ],
-            outputs=[particle_deltas, self._slot_views[1 - self._current].xm, self.lambda_sum],
+            outputs=[particle_deltas, self._slot_views[1 - self.current].xm, self.lambda_sum],
             device=self.device,
         )
-        self._current = 1 - self._current
+        self.current = 1 - self.current
 
-    def _correct(
+    def correct(
         self,
         particle_deltas: wp.array,
         active: wp.array,
@@ -559,13 +447,13 @@ class FluidSolver:
         applied = self._apply_off
         # the corrected positions go to the other position buffer (this pass reads the current one)
         if advance:
-            applied = self._apply_advance[self._current]
+            applied = self._apply_advance[self.current]
         elif x_pred is not None:
             applied = ParticleApply()
             applied.on = APPLY_AS_XPBD
             applied.x_pred = x_pred
             applied.x_start, applied.dt, applied.v_max = apply[0], float(apply[1]), float(apply[2])
-            applied.xm = self._slot_views[1 - self._current].xm
+            applied.xm = self._slot_views[1 - self.current].xm
             applied.v = self.sorted_v
         wp.launch(
             apply_fluid_density_correction,
@@ -584,7 +472,7 @@ class FluidSolver:
             device=self.device,
         )
 
-    def _evaluate_constraint(self, active: wp.array, track_compression: bool = False, last: bool = False) -> None:
+    def evaluate_constraint(self, active: wp.array, track_compression: bool = False, last: bool = False) -> None:
         """Density and multipliers at the positions gathered in ``slots.xm`` (while ``active[0]`` is set).
 
         ``last``: a pass of the substep's last XPBD iteration, whose compression peaks are kept for the
@@ -602,7 +490,7 @@ class FluidSolver:
                 int(track_compression),
                 int(last),
             ],
-            outputs=[self.density, self.lambda_rho, self.wall_grad, self._compression_bins, self.reports.peaks],
+            outputs=[self.density, self.lambda_rho, self.wall_grad, self.compression_bins, self.reports.peaks],
             device=self.device,
         )
 
@@ -631,7 +519,7 @@ class FluidSolver:
                 state_out,
                 dt,
             )
-        if self._warm_start_on() and not self._warm_stored:
+        if self.warm_start_on() and not self.warm_stored:
             wp.launch(
                 store_fluid_warm_start,
                 dim=self.fluid_count,
@@ -639,7 +527,7 @@ class FluidSolver:
                 outputs=[self.particle_lambda],
                 device=self.device,
             )
-        self._warm_stored = False
+        self.warm_stored = False
         if self.device.is_capturing:
             self._velocity_pass(state_out, dt)
             self._vorticity_pass(state_out, dt)
@@ -835,7 +723,7 @@ class FluidSolver:
         s = self.search
         self.build_neighborhood(state.particle_q)
         # the statistics are of the fluid's own kernel sum (the build cleared the slots' walls)
-        self._evaluate_constraint(self._always_active)
+        self.evaluate_constraint(self.always_active)
         self.slot_content = SlotContent.STALE
         v = self.reports.summarize(self.params, s.slots, self.density, s.candidate_count)
         active = int(v[0])

@@ -23,6 +23,8 @@ References:
       fluids. ACM TOG 32(6), 2013 (cohesion spline).
 """
 
+import enum
+
 import warp as wp
 
 # approximate division and square root in CUDA code (Warp ignores it on the CPU): up to a few hundred
@@ -86,6 +88,19 @@ class FluidSlots:
     lane_capacity: int  # list rows of each lane: lane l stores its finds in rows [l, l + 1) * lane_capacity
     wall_count: wp.array[wp.int32]  # static-wall contacts listed for the slot (may exceed WALL_CONTACTS_PER_SLOT)
     wall_plane: wp.array[wp.vec4]  # their planes, transposed: unit normal (xyz) and offset n . p [m] (w)
+
+
+class SlotContent(enum.Enum):
+    """What the current slot buffer (``slots.xm``, and ``sorted_v``) holds between the passes of a step."""
+
+    #: out of date: a pass that reads positions gathers them first
+    STALE = enum.auto()
+    #: the positions the neighbourhood build gathered: a substep's first iteration uses them as they are
+    BUILT = enum.auto()
+    #: the positions SolverXPBD applied after the last iteration, written by its correction pass
+    APPLIED = enum.auto()
+    #: those positions, and in ``sorted_v`` the velocities it applied (the velocity pass gathers nothing)
+    APPLIED_WITH_VELOCITIES = enum.auto()
 
 
 @wp.func
