@@ -14,7 +14,7 @@ capture on the CPU, one CUDA graph per frame on a GPU), one curve per mode and i
 
 Usage::
 
-    python benchmarks/accuracy_chart.py --size small --json chart_cpu.json --plot chart_cpu.png
+    python -m benchmarks accuracy_chart --size small --json chart_cpu.json --plot chart_cpu.png
 """
 
 from __future__ import annotations
@@ -24,13 +24,12 @@ import contextlib
 import io
 import json
 
-import hydrostatic_pressure
-import sloshing
-import torricelli
 import warp as wp
-from run_record import machine_record
 
 from newton.examples.fluid.progress import track
+
+from . import hydrostatic_pressure, sloshing, torricelli
+from .run_record import machine_record
 
 MODES = {
     "default": [],

@@ -13,7 +13,7 @@ the time goes at many worlds: the collision pipeline, the solver, the task's own
 
 Usage::
 
-    python benchmarks/batched_worlds.py [--scene pouring multiworld] [--worlds 1 16 256 1024 4096]
+    python -m benchmarks batched_worlds [--scene pouring multiworld] [--worlds 1 16 256 1024 4096]
         [--per-world 1000 4000] [--frames 60] [--json out.json] [--plot out.png] [--breakdown]
 """
 
@@ -23,14 +23,15 @@ import argparse
 import json
 import time
 
-import dam_break
 import newton.viewer
 import numpy as np
 import warp as wp
-from run_record import machine_record
 
 import newton
 from newton.examples.fluid.progress import track
+
+from . import dam_break
+from .run_record import machine_record
 
 
 def build(scene: str, worlds: int, per_world: int, collide_every: int):
@@ -158,7 +159,7 @@ def plot(rows: list[dict], path: str) -> None:
     fig.savefig(path, dpi=120)
 
 
-def main():
+def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--scene", nargs="+", choices=("pouring", "multiworld"), default=["pouring"])
     parser.add_argument("--worlds", type=int, nargs="+", default=[1, 16, 256, 1024, 4096])
@@ -187,7 +188,7 @@ def main():
         "--from-json", type=str, nargs="+", default=None, help="Print and plot these results instead of running."
     )
     parser.add_argument("--quiet", action="store_true")
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     if args.from_json:
         records = [json.load(open(path)) for path in args.from_json]
         rows = [r for record in records for r in record["rows"]]

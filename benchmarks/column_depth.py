@@ -16,7 +16,7 @@ the map (``--inputs``: from a JSON written before).
 
 Usage::
 
-    python benchmarks/column_depth.py --per-l 10 20 30 --iterations 1 2 4 --json out.json --plot map.png
+    python -m benchmarks column_depth --per-l 10 20 30 --iterations 1 2 4 --json out.json --plot map.png
 """
 
 from __future__ import annotations
@@ -28,13 +28,14 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from run_record import machine_record
 
 from newton.examples.fluid.progress import track
 
+from .run_record import machine_record
+
 
 def run_one(per_l: int, iterations: int, args, device) -> dict:
-    import validate_dam_break as validate  # noqa: PLC0415
+    from . import validate_dam_break as validate  # noqa: PLC0415
 
     # walls 2.5L tall, as validate_dam_break.py's own runs
     wall_top = 2.5 * validate.L

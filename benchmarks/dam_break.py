@@ -13,7 +13,7 @@ h (SciPy cKDTree), divided by the rest density of a cubic lattice at the spacing
 
 Usage::
 
-    python benchmarks/dam_break.py [--particles N] [--device cuda:0] [--json out.json] [--kernel-timing]
+    python -m benchmarks dam_break [--particles N] [--device cuda:0] [--json out.json] [--kernel-timing]
 """
 
 from __future__ import annotations
@@ -27,15 +27,17 @@ import time
 
 import numpy as np
 import warp as wp
-from run_record import machine_record
 
 import newton
 from newton._src.solvers.xpbd.fluid.calibration import wall_density_tables
-from newton._src.solvers.xpbd.fluid.config import DEFAULT_NONAFFINE_DAMPING, FluidTuning
+from newton._src.solvers.xpbd.fluid.config import FluidTuning
 from newton._src.solvers.xpbd.fluid.sph import SlotContent
 from newton._src.solvers.xpbd.fluid.upstream import upstream_step_only
 from newton.examples.fluid.example_fluid_xpbd_dam_break import TANK_HALF_LENGTH, add_dam_break
 from newton.examples.fluid.progress import track
+
+from .frames import add_solver_arguments, solver_keywords
+from .run_record import machine_record
 
 
 def poly6(r2: np.ndarray, h: float) -> np.ndarray:
@@ -246,19 +248,7 @@ def run(args) -> dict:
     model.particle_max_velocity = args.speed_clamp * 0.5 * spacing / dt if args.speed_clamp > 0 else 1.0e5
     solver = newton.solvers.SolverXPBD(
         model,
-        iterations=args.iterations,
-        fluid_rest_distance=spacing,
-        fluid_cohesion=args.cohesion,
-        fluid_viscosity=args.viscosity,
-        fluid_vorticity=0.0,
-        fluid_relaxation=args.relaxation,
-        fluid_nonaffine_damping=args.nonaffine_damping,
-        fluid_warm_start=args.warm_start,
-        fluid_density_ramp=args.density_ramp,
-        fluid_density_tolerance=args.density_tolerance,
-        fluid_max_iterations=args.density_iterations,
-        max_diffuse_particles=args.diffuse,
-        fluid_continuous_collision=args.continuous_collision,
+        **solver_keywords(args, spacing),
         _fluid_tuning=FluidTuning(concurrent_passes=not args.single_stream, scan_lanes=args.scan_lanes),
     )
     # contacts reach one diameter from the surface, where the walls' ghost density has vanished
@@ -335,19 +325,19 @@ def run(args) -> dict:
         "spacing_m": spacing,
         "substeps": args.substeps,
         "iterations": args.iterations,
-        "cohesion": args.cohesion,
+        "cohesion": solver.fluid_cohesion,
         "relaxation": solver.fluid_relaxation,
-        "nonaffine_damping": args.nonaffine_damping,
-        "fluid_warm_start": args.warm_start,
-        "fluid_density_ramp": args.density_ramp,
-        "fluid_max_iterations": args.density_iterations,
-        "fluid_density_tolerance": args.density_tolerance,
+        "nonaffine_damping": solver.fluid_nonaffine_damping,
+        "fluid_warm_start": solver.fluid_warm_start,
+        "fluid_density_ramp": solver.fluid_density_ramp,
+        "fluid_max_iterations": solver.fluid_max_iterations,
+        "fluid_density_tolerance": solver.fluid_density_tolerance,
         "density_subiterations_per_substep": stats["density_subiterations"] / max(1, frames_simulated * args.substeps),
-        "viscosity": args.viscosity,
-        "max_diffuse_particles": args.diffuse,
-        "diffuse_emitted": int(solver.diffuse_emitted_count.numpy()[0]) if args.diffuse else 0,
+        "viscosity": solver.fluid_viscosity,
+        "max_diffuse_particles": solver.max_diffuse_particles,
+        "diffuse_emitted": int(solver.diffuse_emitted_count.numpy()[0]) if solver.max_diffuse_particles else 0,
         "speed_clamp_radii_per_substep": args.speed_clamp,
-        "fluid_continuous_collision": args.continuous_collision,
+        "fluid_continuous_collision": solver.fluid_continuous_collision,
         "shape_entries_stopped": stats["shape_entries_stopped"],
         "cuda_graph": graph is not None,
         "scan_lanes": getattr(solver._fluid.search, "lanes", 1),
@@ -365,26 +355,7 @@ def run(args) -> dict:
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--particles", type=int, default=99_960)
-    parser.add_argument("--device", default=None)
-    parser.add_argument("--substeps", type=int, default=8)
-    parser.add_argument("--iterations", type=int, default=2)
-    parser.add_argument("--cohesion", type=float, default=1.0)
-    parser.add_argument("--relaxation", type=float, default=None, help="fluid_relaxation (default: the solver's)")
-    parser.add_argument(
-        "--nonaffine-damping", type=float, default=DEFAULT_NONAFFINE_DAMPING, help="fluid_nonaffine_damping"
-    )
-    parser.add_argument("--warm-start", type=float, default=0.0, help="fluid_warm_start")
-    parser.add_argument("--density-ramp", type=float, default=0.0, help="fluid_density_ramp")
-    parser.add_argument("--density-iterations", type=int, default=1, help="fluid_max_iterations")
-    parser.add_argument("--density-tolerance", type=float, default=0.0, help="fluid_density_tolerance")
-    parser.add_argument("--viscosity", type=float, default=0.05)
-    parser.add_argument("--diffuse", type=int, default=0, help="max_diffuse_particles (0: off)")
-    parser.add_argument(
-        "--continuous-collision",
-        action=argparse.BooleanOptionalAction,
-        default=True,
-        help="fluid_continuous_collision (paths kept out of the static walls)",
-    )
+    add_solver_arguments(parser, defaults={"fluid_cohesion": 1.0, "fluid_viscosity": 0.05})
     parser.add_argument("--speed-clamp", type=float, default=0.5, help="max displacement per substep [radii]; 0: off")
     parser.add_argument(
         "--scan-lanes", type=int, default=0, help="threads per particle of the neighbour scan (0: the solver's choice)"
@@ -402,7 +373,6 @@ def main(argv=None):
     parser.add_argument(
         "--pass-timing", action="store_true", help="graph time of each part of a frame, each replayed alone (CUDA)"
     )
-    parser.add_argument("--json", default=None, help="write the result here")
     args = parser.parse_args(argv)
     wp.config.quiet = True
     r = run(args)

@@ -11,7 +11,7 @@ the solver's rest density is calibrated to). Two-way coupling, XPBD's particle-s
 fluid's pressure reaches the box only through the contacts of the particles next to it, so the
 box needs a few spacings of height before its draft is resolved.
 
-    python benchmarks/floating_box.py [--spacings 0.1 0.05] [--densities 250 500 750] [--json out.json]
+    python -m benchmarks floating_box [--spacings 0.1 0.05] [--densities 250 500 750] [--json out.json]
 
 Prints a table and writes JSON: per run the box's mean height and its spread over the last second,
 the water level, the draft and Archimedes' draft, the fluid's density error at the end (the
@@ -28,11 +28,12 @@ from pathlib import Path
 
 import numpy as np
 import warp as wp
-from run_record import machine_record
 
 import newton
 from newton.examples.fluid.common import add_tank
 from newton.examples.fluid.progress import track
+
+from .run_record import machine_record
 
 POOL_HALF = 0.5  # inner half-width of the square pool [m]
 DEPTH = 0.4  # water depth at rest spacing [m]

@@ -1,11 +1,15 @@
 # SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
 # SPDX-License-Identifier: Apache-2.0
 
-"""A benchmark's frame: its substeps of collision and solver step, one captured CUDA graph per frame on a GPU."""
+"""What the benchmarks share: the solver's keywords as flags, and a frame of substeps (a CUDA graph on a GPU)."""
 
 from __future__ import annotations
 
+import argparse
+
 import warp as wp
+
+from newton._src.solvers.xpbd.fluid.config import FluidConfig
 
 
 class Frames:
@@ -45,35 +49,85 @@ class Frames:
         wp.capture_launch(self.graph)
 
 
-def add_solver_arguments(parser, warm_start: float = 0.0, warm_start_help: str = "fluid_warm_start") -> None:
-    """The arguments every exact-answer benchmark takes for the solver, the device and its JSON record."""
-    parser.add_argument("--substeps", type=int, default=8)
-    parser.add_argument("--iterations", type=int, default=2)
-    parser.add_argument("--viscosity", type=float, default=0.0, help="fluid_viscosity")
-    parser.add_argument(
-        "--nonaffine-damping", type=float, default=None, help="fluid_nonaffine_damping (default: the solver's)"
+#: the solver's ``fluid_*`` keywords (and ``max_diffuse_particles``) with their defaults, from its configuration
+SOLVER_KEYWORDS = {name: f.default for name, f in FluidConfig.__dataclass_fields__.items()}
+# keywords a scene sets from its spacing, not from a flag
+_SCENE_KEYWORDS = ("fluid_rest_distance", "fluid_smoothing_length")
+
+
+def solver_flag(keyword: str) -> str:
+    """The command-line flag of a solver keyword: ``fluid_density_tolerance`` is ``--density-tolerance``."""
+    return "--" + keyword.removeprefix("fluid_").replace("_", "-")
+
+
+def add_solver_arguments(parser, defaults: dict | None = None, substeps: int = 8, iterations: int = 2) -> None:
+    """Every solver keyword as a flag named after it (:func:`solver_flag`), so the names match in every benchmark.
+
+    A flag left unset passes nothing: the solver's default applies. Besides them: ``--substeps``,
+    ``--iterations``, ``--smoothing-ratio`` (``fluid_smoothing_length`` over the scene's spacing),
+    ``--device`` and ``--json``.
+
+    Args:
+        parser: The ``argparse.ArgumentParser`` to add them to.
+        defaults: The benchmark's own defaults by keyword (for example ``{"fluid_cohesion": 1.0}``).
+        substeps: Default substeps per 1/60 s frame.
+        iterations: Default XPBD iterations per substep.
+    """
+    defaults = defaults or {}
+    unknown = set(defaults) - set(SOLVER_KEYWORDS)
+    if unknown:
+        raise ValueError(f"defaults names {sorted(unknown)}, which are not solver keywords")
+    group = parser.add_argument_group("solver", "SolverXPBD's keywords (unset: the solver's default)")
+    group.add_argument("--substeps", type=int, default=substeps, help="substeps per 1/60 s frame")
+    group.add_argument("--iterations", type=int, default=iterations, help="XPBD iterations per substep")
+    group.add_argument(
+        "--smoothing-ratio",
+        type=float,
+        default=None,
+        help="the smoothing length over the scene's spacing (sets fluid_smoothing_length)",
     )
-    parser.add_argument("--warm-start", type=float, default=warm_start, help=warm_start_help)
-    parser.add_argument(
-        "--smoothing-ratio", type=float, default=None, help="fluid_smoothing_length / spacing (default: the solver's)"
-    )
+    for name, default in SOLVER_KEYWORDS.items():
+        if name in _SCENE_KEYWORDS:
+            continue
+        value = defaults.get(name)
+        shown = f" (default {value})" if value is not None else ""
+        if isinstance(default, bool):
+            group.add_argument(
+                solver_flag(name), action=argparse.BooleanOptionalAction, default=value, help=name + shown
+            )
+        else:
+            kind = int if isinstance(default, int) else float
+            group.add_argument(solver_flag(name), type=kind, default=value, help=name + shown)
     parser.add_argument("--device", default=None)
     parser.add_argument("--json", default=None)
 
 
 def solver_keywords(args, spacing: float, damping: bool = True) -> dict:
-    """``SolverXPBD`` keywords from :func:`add_solver_arguments`' arguments (``damping``: pass the damping too)."""
-    keywords = {
-        "iterations": args.iterations,
-        "fluid_rest_distance": spacing,
-        "fluid_viscosity": args.viscosity,
-        "fluid_warm_start": args.warm_start,
-    }
+    """``SolverXPBD`` keywords from :func:`add_solver_arguments`' flags: the ones set, and the scene's spacing.
+
+    Args:
+        args: The parsed arguments.
+        spacing: The scene's particle spacing [m] (``fluid_rest_distance``).
+        damping: Whether to pass ``fluid_nonaffine_damping`` (a benchmark that settles with its own damping first
+            sets it later).
+    """
+    keywords = {"iterations": args.iterations, "fluid_rest_distance": spacing}
     if args.smoothing_ratio is not None:
         keywords["fluid_smoothing_length"] = args.smoothing_ratio * spacing
-    if damping and args.nonaffine_damping is not None:
-        keywords["fluid_nonaffine_damping"] = args.nonaffine_damping
+    for name in SOLVER_KEYWORDS:
+        if name in _SCENE_KEYWORDS:
+            continue
+        value = getattr(args, name.removeprefix("fluid_"))
+        if value is not None:
+            keywords[name] = value
+    if not damping:
+        keywords.pop("fluid_nonaffine_damping", None)
     return keywords
+
+
+def solver_record(solver) -> dict:
+    """The solver's settings for a JSON record: its iterations and every fluid keyword's value in use."""
+    return {"iterations": solver.iterations, **{name: getattr(solver, name) for name in SOLVER_KEYWORDS}}
 
 
 def run_on_device(run, args):

@@ -11,72 +11,72 @@ gpu=${gpu:-gpu}
 for what in "$@"; do
   case $what in
     bench)
-      python3 benchmarks/dam_break.py --kernel-timing --json "$out/dam_break_100k.json" 2>&1 | grep -v '^Module'
-      python3 benchmarks/dam_break.py --particles 1000000 --warmup-frames 20 --frames 10 --trials 3 \
+      python3 -m benchmarks dam_break --kernel-timing --json "$out/dam_break_100k.json" 2>&1 | grep -v '^Module'
+      python3 -m benchmarks dam_break --particles 1000000 --warmup-frames 20 --frames 10 --trials 3 \
         --json "$out/dam_break_1m.json" 2>&1 | grep -v '^Module' ;;
     still)
       # still water (docs/validation.md "Still water") and the cost of the step bound and the non-affine damping
       # (docs/performance.md "Still water"): the solver's defaults against the keywords before them
-      python3 benchmarks/rest_column.py --device cuda:0 --json "$out/rest_column_12x12x24_${gpu}.json" 2>&1 | grep -A1 '^device'
-      python3 benchmarks/rest_column.py --device cuda:0 --n 50 --layers 40 --json "$out/rest_column_50x50x40_${gpu}.json" 2>&1 | grep -A1 '^device'
+      python3 -m benchmarks rest_column --device cuda:0 --json "$out/rest_column_12x12x24_${gpu}.json" 2>&1 | grep -A1 '^device'
+      python3 -m benchmarks rest_column --device cuda:0 --n 50 --layers 40 --json "$out/rest_column_50x50x40_${gpu}.json" 2>&1 | grep -A1 '^device'
       for v in "" "--relaxation 1 --nonaffine-damping 0" "--viscosity 0" "--viscosity 0 --relaxation 1 --nonaffine-damping 0"; do
         tag=${v//[ -.]/_}; echo "== 100k $v"
-        python3 benchmarks/dam_break.py $v --trials 3 --json "$out/dam_break_100k_still${tag}_${gpu}.json" 2>&1 | grep -A1 "^device"
+        python3 -m benchmarks dam_break $v --trials 3 --json "$out/dam_break_100k_still${tag}_${gpu}.json" 2>&1 | grep -A1 "^device"
       done
       for v in "" "--relaxation 1 --nonaffine-damping 0"; do
         tag=${v//[ -.]/_}; echo "== 1M $v"
-        python3 benchmarks/dam_break.py $v --particles 1000000 --warmup-frames 20 --frames 10 --trials 3 \
+        python3 -m benchmarks dam_break $v --particles 1000000 --warmup-frames 20 --frames 10 --trials 3 \
           --json "$out/dam_break_1m_still${tag}_${gpu}.json" 2>&1 | grep -A1 "^device"
       done ;;
     collision)
       # the cost of continuous collision at the 100k dam break (docs/performance.md "Continuous collision")
       for v in "" "--no-continuous-collision"; do
         tag=${v//[ -.]/_}; echo "== 100k $v"
-        python3 benchmarks/dam_break.py $v --trials 5 --json "$out/dam_break_100k_collision${tag}_${gpu}.json" 2>&1 | grep -A2 "^device"
+        python3 -m benchmarks dam_break $v --trials 5 --json "$out/dam_break_100k_collision${tag}_${gpu}.json" 2>&1 | grep -A2 "^device"
       done
       python3 -m pytest -q -k cuda newton/tests/test_fluid_continuous_collision.py 2>&1 | tail -5 ;;
     ncu)
       ncu --kernel-name regex:'build_fluid|compute_fluid_density|apply_fluid_density|apply_fluid_visc' \
         --launch-skip 40 --launch-count 4 --section SpeedOfLight --section Occupancy --section LaunchStats \
-        --section MemoryWorkloadAnalysis python3 benchmarks/dam_break.py --warmup-frames 2 --frames 1 --trials 1 \
+        --section MemoryWorkloadAnalysis python3 -m benchmarks dam_break --warmup-frames 2 --frames 1 --trials 1 \
         > "$out/ncu.txt" 2>&1; grep -E 'fluid|Duration|Throughput|Achieved Occupancy|Registers Per|L1/TEX Hit|L2 Hit' "$out/ncu.txt" | head -80 ;;
     variants)
       for v in "--iterations 4" "--substeps 4 --iterations 4" "--cohesion 0" "--speed-clamp 0"; do
-        echo "== $v"; python3 benchmarks/dam_break.py $v --trials 3 --json "$out/dam_break_100k_${v//[ -]/_}.json" 2>&1 | grep -A1 "^device"
+        echo "== $v"; python3 -m benchmarks dam_break $v --trials 3 --json "$out/dam_break_100k_${v//[ -]/_}.json" 2>&1 | grep -A1 "^device"
       done ;;
     tolerance)
-      for v in "--density-iterations 2" "--density-iterations 4 --density-tolerance 0.005" \
-               "--iterations 1 --density-iterations 4 --density-tolerance 0.005" "--iterations 1 --density-iterations 2"; do
-        echo "== $v"; python3 benchmarks/dam_break.py $v --trials 3 --json "$out/dam_break_100k_${v//[ -.]/_}.json" 2>&1 | grep -A1 "^device"
+      for v in "--max-iterations 2" "--max-iterations 4 --density-tolerance 0.005" \
+               "--iterations 1 --max-iterations 4 --density-tolerance 0.005" "--iterations 1 --max-iterations 2"; do
+        echo "== $v"; python3 -m benchmarks dam_break $v --trials 3 --json "$out/dam_break_100k_${v//[ -.]/_}.json" 2>&1 | grep -A1 "^device"
       done ;;
     tolerance-small)
       # the tolerance on a small splash (1,001 particles), against one fixed iteration (docs/validation.md)
       for t in 0.01 0.002; do
-        python3 benchmarks/dam_break.py --particles 1000 --trials 3 --iterations 1 --density-iterations 4 \
+        python3 -m benchmarks dam_break --particles 1000 --trials 3 --iterations 1 --max-iterations 4 \
           --density-tolerance $t --json "$out/dam_break_1k_tolerance_${t}_${gpu}.json" 2>&1 | grep -A1 "^device"
       done
-      python3 benchmarks/dam_break.py --particles 1000 --trials 3 --iterations 1 \
+      python3 -m benchmarks dam_break --particles 1000 --trials 3 --iterations 1 \
         --json "$out/dam_break_1k_fixed_1_${gpu}.json" 2>&1 | grep -A1 "^device" ;;
     render)
       # needs an EGL driver (NVIDIA's libEGL_nvidia on a GPU machine) and pyglet on the path
       ls /usr/lib/x86_64-linux-gnu/ | grep -iE '^libEGL' | tee "$out/egl.txt"
       for res in "1920 1080" "1280 720"; do
         read -r w h <<< "$res"
-        PYGLET_HEADLESS=1 python3 benchmarks/render_fluid.py --width "$w" --height "$h" --png "$out/render_100k_${w}x${h}.png" \
+        PYGLET_HEADLESS=1 python3 -m benchmarks render_fluid --width "$w" --height "$h" --png "$out/render_100k_${w}x${h}.png" \
           --json "$out/render_100k_${w}x${h}.json" 2>&1 | grep -v '^Module' | tail -32
       done ;;
     accuracy)
       # the speed-accuracy sweep of docs/validation.md at 99,200 particles (Koshizuka & Oka column, 40 per L x 31)
-      python3 -W ignore benchmarks/speed_accuracy.py --per-l 40 --depth 31 --sample-every 6 --tolerances 0.005 0.0025 0.001 \
+      python3 -W ignore -m benchmarks speed_accuracy --per-l 40 --depth 31 --sample-every 6 --tolerances 0.005 0.0025 0.001 \
         --json "$out/speed_accuracy_100k_${gpu}.json" 2>&1 | grep -v '^Module' ;;
     exact)
       # physical error against cost, problems with exact answers (docs/validation.md "Exact answers"):
       # the standing wave (about 100k) and Torricelli's jet (about 150k) over substeps x iterations and modes
-      python3 -W ignore benchmarks/accuracy_chart.py --size large --device cuda:0 --json "$out/accuracy_chart_${gpu}.json" \
+      python3 -W ignore -m benchmarks accuracy_chart --size large --device cuda:0 --json "$out/accuracy_chart_${gpu}.json" \
         --plot "$out/accuracy_chart_${gpu}.png" 2>&1 | grep -v '^Module' ;;
     tolerance-chart)
       # fixed counts against the tolerance modes at 8 substeps, one session (docs/images/speed_accuracy_tolerance.png)
-      sa="python3 -W ignore benchmarks/speed_accuracy.py --per-l 40 --depth 31 --sample-every 6 --substeps 8"
+      sa="python3 -W ignore -m benchmarks speed_accuracy --per-l 40 --depth 31 --sample-every 6 --substeps 8"
       $sa --iterations 1 2 3 4 6 8 --tolerances --json "$out/speed_accuracy_100k_fixed_8_substeps_${gpu}.json"
       $sa --iterations --max-iterations 1 --subpasses 12 --tolerances 0.02 0.01 0.005 \
         --json "$out/speed_accuracy_100k_subpasses_i1_${gpu}.json"
@@ -88,19 +88,19 @@ for what in "$@"; do
         --json "$out/speed_accuracy_100k_subpasses_i2_${gpu}.json" ;;
     tolerance-i2)
       # two XPBD iterations with sub-passes against the fixed counts, one session
-      sa="python3 -W ignore benchmarks/speed_accuracy.py --per-l 40 --depth 31 --sample-every 6 --substeps 8"
+      sa="python3 -W ignore -m benchmarks speed_accuracy --per-l 40 --depth 31 --sample-every 6 --substeps 8"
       $sa --iterations 2 3 4 6 8 --tolerances --json "$out/speed_accuracy_100k_fixed_8_substeps_i2_session_${gpu}.json"
       $sa --iterations --max-iterations 2 --subpasses 4 --tolerances 0.02 0.01 0.005 \
         --json "$out/speed_accuracy_100k_subpasses_i2_${gpu}.json" ;;
     surge)
       # the surge front at finer resolutions than the CPU runs of docs/validation.md
-      python3 benchmarks/validate_dam_break.py --resolutions 40 60 80 --json "$out/koshizuka_oka_${gpu}.json" 2>&1 | grep -v '^Module' ;;
+      python3 -m benchmarks validate_dam_break --resolutions 40 60 80 --json "$out/koshizuka_oka_${gpu}.json" 2>&1 | grep -v '^Module' ;;
     diffuse)
       # the same run with diffuse particles on (25,000 capacity), against the plain one of 'bench'
-      python3 benchmarks/dam_break.py --diffuse 25000 --trials 3 --json "$out/dam_break_100k_diffuse.json" 2>&1 | grep -A1 "^device" ;;
+      python3 -m benchmarks dam_break --max-diffuse-particles 25000 --trials 3 --json "$out/dam_break_100k_diffuse.json" 2>&1 | grep -A1 "^device" ;;
     worlds)
       # batched worlds: env-steps/s against world count (docs/batched.rst, docs/images/batched_worlds.png)
-      bw="python3 -W ignore benchmarks/batched_worlds.py"
+      bw="python3 -W ignore -m benchmarks batched_worlds"
       $bw --scene pouring --worlds 1 16 256 1024 4096 --per-world 1000 --frames 30 --warmup 5 --task-frames 220 \
         --json "$out/batched_pouring_1000_${gpu}.json" 2>&1 | grep -v '^Module'
       $bw --scene pouring --worlds 4096 --per-world 1000 --collide-every 2 --frames 30 --warmup 5 --task-frames 220 \
@@ -136,7 +136,7 @@ for what in "$@"; do
     usd)
       # log_fluid's surface mesh (ViewerUSD): the extraction's cost at the dam break's 100k particles
       # (docs/performance.md, "Surface mesh"); needs usd-core (pxr), else add --no-usd for the timing alone
-      python3 benchmarks/usd_surface.py --frames 30 --json "$out/usd_surface_100k_${gpu}.json" 2>&1 | grep -v '^Module' ;;
+      python3 -m benchmarks usd_surface --frames 30 --json "$out/usd_surface_100k_${gpu}.json" 2>&1 | grep -v '^Module' ;;
     tests)
       python3 -m pytest -q -k cuda newton/tests/test_solver_xpbd_fluid.py newton/tests/test_fluid_examples.py \
         newton/tests/test_fluid_surface_mesh.py newton/tests/test_fluid_reset.py newton/tests/test_fluid_sensor.py \

@@ -11,7 +11,7 @@ density error. Writes JSON with ``--json``.
 
 Usage::
 
-    python benchmarks/hydrostatic_drift.py [--iterations 2] [--substeps 8] [--viscosity 0.05] [--json out.json]
+    python -m benchmarks hydrostatic_drift [--iterations 2] [--substeps 8] [--viscosity 0.05] [--json out.json]
 """
 
 from __future__ import annotations
@@ -23,11 +23,12 @@ from pathlib import Path
 
 import numpy as np
 import warp as wp
-from run_record import machine_record
 
 import newton
 from newton.examples.fluid.common import add_tank
 from newton.examples.fluid.progress import track
+
+from .run_record import machine_record
 
 D = 0.1  # spacing [m]
 
@@ -61,7 +62,7 @@ def main(argv=None):
     parser.add_argument("--viscosity", type=float, default=0.05)
     parser.add_argument("--cohesion", type=float, default=0.0)
     parser.add_argument("--relaxation", type=float, default=None, help="fluid_relaxation (default: the solver's)")
-    parser.add_argument("--smoothing", type=float, default=1.8, help="smoothing length over the spacing")
+    parser.add_argument("--smoothing-ratio", type=float, default=1.8, help="smoothing length over the spacing")
     parser.add_argument("--warm-start", type=float, default=0.0, help="fluid_warm_start")
     parser.add_argument("--density-ramp", type=float, default=0.0, help="fluid_density_ramp")
     parser.add_argument(
@@ -101,7 +102,7 @@ def main(argv=None):
         fluid_viscosity=args.viscosity,
         fluid_cohesion=args.cohesion,
         fluid_relaxation=args.relaxation,
-        fluid_smoothing_length=args.smoothing * D,
+        fluid_smoothing_length=args.smoothing_ratio * D,
         fluid_warm_start=args.warm_start,
         fluid_density_ramp=args.density_ramp,
     )
@@ -186,7 +187,7 @@ def main(argv=None):
         "relaxation": args.relaxation,
         "warm_start": args.warm_start,
         "fluid_density_ramp": args.density_ramp,
-        "smoothing_over_spacing": args.smoothing,
+        "smoothing_over_spacing": args.smoothing_ratio,
         "settle_s": args.settle,
         "start_max_compression": start["max_compression"],
         "settle_max_speed_m_s": settle_max_speed,

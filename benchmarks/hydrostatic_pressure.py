@@ -25,7 +25,7 @@ by a millionth.
 
 Usage::
 
-    python benchmarks/hydrostatic_pressure.py [--n 8 --layers 16] [--substeps 8 --iterations 2] [--json out.json]
+    python -m benchmarks hydrostatic_pressure [--n 8 --layers 16] [--substeps 8 --iterations 2] [--json out.json]
 """
 
 from __future__ import annotations
@@ -36,13 +36,14 @@ import time
 
 import numpy as np
 import warp as wp
-from frames import Frames, add_solver_arguments, run_on_device, solver_keywords
-from rest_column import GRAVITY, SPACING, build
-from run_record import write_record
 
 import newton
 from newton._src.solvers.xpbd.fluid.calibration import rest_lattice
 from newton.examples.fluid.progress import track
+
+from .frames import Frames, add_solver_arguments, run_on_device, solver_keywords
+from .rest_column import GRAVITY, SPACING, build
+from .run_record import write_record
 
 
 def pressure_factor(solver, mass: float, d: float, dt: float) -> float:
@@ -161,10 +162,16 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--n", type=int, default=8, help="particles along each side of the column")
     p.add_argument("--layers", type=int, default=16)
     p.add_argument("--settle", type=float, default=2.0, help="[s]")
-    p.add_argument("--settle-damping", type=float, default=1.0, help="fluid_nonaffine_damping while settling")
+    p.add_argument(
+        "--settle-damping",
+        type=float,
+        default=1.0,
+        help="the non-affine damping while settling (then the one under test)",
+    )
     p.add_argument("--relax", type=float, default=1.0, help="[s] at the keywords under test before measuring")
     p.add_argument("--measure", type=float, default=1.0, help="[s]")
-    add_solver_arguments(p, warm_start=1e-6, warm_start_help="fluid_warm_start (the multipliers are read from it)")
+    # (the multipliers are read through the warm start's store)
+    add_solver_arguments(p, defaults={"fluid_warm_start": 1e-6})
     return p
 
 

@@ -10,7 +10,7 @@ Prints a table and writes JSON.
 
 Usage::
 
-    python benchmarks/inactive_pool.py [--active 50000] [--pool 50000] [--device cuda:0] [--json out.json]
+    python -m benchmarks inactive_pool [--active 50000] [--pool 50000] [--device cuda:0] [--json out.json]
 """
 
 from __future__ import annotations
@@ -24,9 +24,10 @@ from pathlib import Path
 
 import numpy as np
 import warp as wp
-from run_record import machine_record
 
 import newton
+
+from .run_record import machine_record
 
 SPACING = 0.02  # [m]
 

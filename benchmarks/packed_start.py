@@ -15,7 +15,7 @@ settled level.
 
 Usage::
 
-    python benchmarks/packed_start.py [--fraction 0.7] [--no-continuous-collision] [--json out.json]
+    python -m benchmarks packed_start [--fraction 0.7] [--no-continuous-collision] [--json out.json]
 """
 
 from __future__ import annotations
@@ -25,11 +25,12 @@ import warnings
 
 import numpy as np
 import warp as wp
-from run_record import write_record
 
 import newton
 from newton.examples.fluid.common import add_closed_box
 from newton.examples.fluid.progress import track
+
+from .run_record import write_record
 
 SPACING = 0.1  # rest spacing [m]
 

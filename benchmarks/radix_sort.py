@@ -10,7 +10,7 @@ without the sorts. Prints a table and writes JSON.
 
 Usage::
 
-    python benchmarks/radix_sort.py [--count 99960] [--bits 15 16 17 19 24 32] [--json out.json]
+    python -m benchmarks radix_sort [--count 99960] [--bits 15 16 17 19 24 32] [--json out.json]
 """
 
 from __future__ import annotations
@@ -23,9 +23,8 @@ from pathlib import Path
 import numpy as np
 import warp as wp
 
-# benchmarks/ is on the path of a script run from it
-from dam_break import graph_ms
-from run_record import machine_record
+from .dam_break import graph_ms
+from .run_record import machine_record
 
 SORTS_PER_GRAPH = 8
 

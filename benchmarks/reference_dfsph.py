@@ -24,7 +24,7 @@ by re-executing itself.
 
 Usage::
 
-    python benchmarks/reference_dfsph.py [--per-l 20] [--depth 16] [--t-end 1.5] [--json out.json] [--plot out.png]
+    python -m benchmarks reference_dfsph [--per-l 20] [--depth 16] [--t-end 1.5] [--json out.json] [--plot out.png]
 """
 
 from __future__ import annotations
@@ -39,7 +39,8 @@ import time
 from pathlib import Path
 
 import numpy as np
-from run_record import machine_record
+
+from .run_record import machine_record
 
 GL_DISPATCH = "/lib/x86_64-linux-gnu/libGLdispatch.so.0"
 G = 9.81
@@ -55,9 +56,7 @@ class Recorder:
     """Front, energy and density of one run at the sample times (positions from the column's corner)."""
 
     def __init__(self, L: float, d: float, mass: float, h: float, width: float, wall_shift: float = 0.0):
-        # benchmarks/ is on the path of a script run from it
-        import dam_break  # noqa: PLC0415
-        import validate_dam_break  # noqa: PLC0415
+        from . import dam_break, validate_dam_break  # noqa: PLC0415
 
         self.bench = dam_break
         self.validate = validate_dam_break
@@ -102,10 +101,11 @@ class Recorder:
 
 
 def run_xpbd(args, L: float, times: np.ndarray) -> dict:
-    import validate_dam_break as validate  # noqa: PLC0415
     import warp as wp  # noqa: PLC0415
 
     from newton.examples.fluid.progress import track  # noqa: PLC0415
+
+    from . import validate_dam_break as validate  # noqa: PLC0415
 
     wp.config.quiet = True
     device = wp.get_device(args.device)
@@ -332,9 +332,10 @@ def main(argv=None):
     if not args.skip_dfsph and args.gl_dispatch not in preload and os.path.exists(args.gl_dispatch):
         # pysplishsplash segfaults on import without it
         os.environ["LD_PRELOAD"] = (args.gl_dispatch + " " + preload).strip()
-        os.execv(sys.executable, [sys.executable, *sys.argv])
+        rest = sys.argv[1:] if argv is None else argv
+        os.execv(sys.executable, [sys.executable, "-m", "benchmarks", "reference_dfsph", *rest])
 
-    import validate_dam_break as validate  # noqa: PLC0415
+    from . import validate_dam_break as validate  # noqa: PLC0415
 
     data = json.loads(validate.DATA.read_text())
     points = np.asarray(data["points"], dtype=np.float64)

@@ -15,7 +15,7 @@ each mode with ``--png``.
 
 Usage::
 
-    PYGLET_HEADLESS=1 python benchmarks/render_fluid.py [--particles N] [--width W --height H] [--json out.json]
+    PYGLET_HEADLESS=1 python -m benchmarks render_fluid [--particles N] [--width W --height H] [--json out.json]
 """
 
 from __future__ import annotations
@@ -38,10 +38,11 @@ if not os.environ.get("DISPLAY"):
     pyglet.options["headless"] = True
 
 import newton.viewer
-from run_record import machine_record
 
 import newton
 from newton.examples.fluid.example_fluid_xpbd_dam_break import Example
+
+from .run_record import machine_record
 
 
 def main(argv=None):

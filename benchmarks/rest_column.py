@@ -14,7 +14,7 @@ g z) at the start and end of the measurement. The targets of issue #23: RMS belo
 
 Usage::
 
-    python benchmarks/rest_column.py [--n 12 --layers 24] [--substeps 8 --iterations 2] [--json out.json]
+    python -m benchmarks rest_column [--n 12 --layers 24] [--substeps 8 --iterations 2] [--json out.json]
 """
 
 from __future__ import annotations
@@ -24,12 +24,13 @@ import time
 
 import numpy as np
 import warp as wp
-from run_record import write_record
 
 import newton
 from newton._src.solvers.xpbd.fluid.config import DEFAULT_NONAFFINE_DAMPING
 from newton.examples.fluid.common import add_closed_box, add_water_lattice
 from newton.examples.fluid.progress import track
+
+from .run_record import write_record
 
 SPACING = 0.05  # [m]
 GRAVITY = 9.81  # [m/s^2]

@@ -21,7 +21,7 @@ period later, the geometric mean over ``--periods`` periods).
 
 Usage::
 
-    python benchmarks/sloshing.py [--per-length 20 --ratio 0.5 --amplitude 0.1] [--json out.json]
+    python -m benchmarks sloshing [--per-length 20 --ratio 0.5 --amplitude 0.1] [--json out.json]
 """
 
 from __future__ import annotations
@@ -32,12 +32,13 @@ import time
 
 import numpy as np
 import warp as wp
-from frames import Frames, add_solver_arguments, run_on_device, solver_keywords
-from run_record import write_record
 
 import newton
 from newton.examples.fluid.common import add_closed_box, add_water_lattice
 from newton.examples.fluid.progress import track
+
+from .frames import Frames, add_solver_arguments, run_on_device, solver_keywords
+from .run_record import write_record
 
 GRAVITY = 9.81  # [m/s^2]
 
@@ -168,8 +169,8 @@ def run(args, device) -> dict:
         "amplitude_m": amplitude,
         "substeps": args.substeps,
         "iterations": args.iterations,
-        "viscosity": args.viscosity,
-        "warm_start": args.warm_start,
+        "viscosity": solver.fluid_viscosity,
+        "warm_start": solver.fluid_warm_start,
         "smoothing_length_m": solver.fluid_smoothing_length,
         "nonaffine_damping": damping,
         "settle_s": args.settle,
@@ -198,7 +199,12 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--amplitude", type=float, default=0.1, help="wave amplitude over depth a / h")
     p.add_argument("--periods", type=int, default=10)
     p.add_argument("--settle", type=float, default=2.0, help="[s]")
-    p.add_argument("--settle-damping", type=float, default=1.0, help="fluid_nonaffine_damping while settling")
+    p.add_argument(
+        "--settle-damping",
+        type=float,
+        default=1.0,
+        help="the non-affine damping while settling (then the one under test)",
+    )
     p.add_argument("--jitter", type=float, default=0.0, help="random offset of the start lattice [spacings]")
     p.add_argument(
         "--control", action="store_true", help="subtract the centre-of-mass drift of the same tank without the wave"

@@ -21,8 +21,8 @@ moment a bound that must hold throughout (what a tolerance promises) is held to.
 
 Usage::
 
-    python benchmarks/speed_accuracy.py --device cpu --json docs/validation/speed_accuracy_12k_cpu.json
-    python benchmarks/speed_accuracy.py --plot docs/images/speed_accuracy.png --inputs a.json b.json --reference ref.json
+    python -m benchmarks speed_accuracy --device cpu --json docs/validation/speed_accuracy_12k_cpu.json
+    python -m benchmarks speed_accuracy --plot docs/images/speed_accuracy.png --inputs a.json b.json --reference ref.json
 """
 
 from __future__ import annotations
@@ -34,16 +34,17 @@ import time
 from pathlib import Path
 
 import numpy as np
-from run_record import machine_record
 
 from newton.examples.fluid.progress import track
 
+from .run_record import machine_record
+
 
 def run_one(args, device, substeps: int, iterations: int, tolerance: float, passes: int = 1) -> dict:
-    # benchmarks/ is on the path of a script run from it
-    import reference_dfsph as reference  # noqa: PLC0415
-    import validate_dam_break as validate  # noqa: PLC0415
     import warp as wp  # noqa: PLC0415
+
+    from . import reference_dfsph as reference  # noqa: PLC0415
+    from . import validate_dam_break as validate  # noqa: PLC0415
 
     L = validate.L
     model, solver, pipeline, dt = validate.build_plain(

@@ -14,7 +14,7 @@ speed, the longest stable substep, with every run's numbers; ``--plot`` draws it
 
 Usage::
 
-    python benchmarks/stability_map.py [--device cpu] [--json out.json] [--plot out.png]
+    python -m benchmarks stability_map [--device cpu] [--json out.json] [--plot out.png]
 """
 
 from __future__ import annotations
@@ -28,11 +28,12 @@ from pathlib import Path
 
 import numpy as np
 import warp as wp
-from run_record import machine_record
 
 import newton
 from newton.examples.fluid.common import add_closed_tank
 from newton.examples.fluid.progress import track
+
+from .run_record import machine_record
 
 FLUID = int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID)
 

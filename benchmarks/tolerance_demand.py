@@ -11,7 +11,7 @@ the substeps need fewer than the fixed count would run. Writes JSON with ``--jso
 
 Usage::
 
-    python benchmarks/tolerance_demand.py [--tolerance 0.0025] [--warm-start 0.5] [--seconds 5] [--json out.json]
+    python -m benchmarks tolerance_demand [--tolerance 0.0025] [--warm-start 0.5] [--seconds 5] [--json out.json]
 """
 
 from __future__ import annotations
@@ -23,9 +23,10 @@ from pathlib import Path
 
 import numpy as np
 import warp as wp
-from run_record import machine_record
 
 from newton.examples.fluid.progress import track
+
+from .run_record import machine_record
 
 
 def main(argv=None):
@@ -34,16 +35,15 @@ def main(argv=None):
     parser.add_argument("--depth", type=int, default=16, help="particle layers in y")
     parser.add_argument("--substeps", type=int, default=8)
     parser.add_argument("--iterations", type=int, default=1, help="XPBD iterations")
-    parser.add_argument("--max-passes", type=int, default=8, help="fluid_max_iterations")
-    parser.add_argument("--tolerance", type=float, default=0.0025, help="fluid_density_tolerance")
+    parser.add_argument("--max-iterations", type=int, default=8, help="fluid_max_iterations")
+    parser.add_argument("--density-tolerance", type=float, default=0.0025, help="fluid_density_tolerance")
     parser.add_argument("--warm-start", type=float, default=0.0, help="fluid_warm_start")
     parser.add_argument("--seconds", type=float, default=5.0)
     parser.add_argument("--every", type=int, default=15, help="frames per row")
     parser.add_argument("--device", default=None)
     parser.add_argument("--json", default=None)
     args = parser.parse_args(argv)
-    # benchmarks/ is on the path of a script run from it
-    import validate_dam_break as validate  # noqa: PLC0415
+    from . import validate_dam_break as validate  # noqa: PLC0415
 
     wp.config.quiet = True
     device = wp.get_device(args.device)
@@ -53,8 +53,8 @@ def main(argv=None):
         args.substeps,
         args.iterations,
         device,
-        fluid_density_tolerance=args.tolerance,
-        fluid_max_iterations=args.max_passes,
+        fluid_density_tolerance=args.density_tolerance,
+        fluid_max_iterations=args.max_iterations,
         fluid_warm_start=args.warm_start,
     )
     stepper = validate.Stepper(model, solver, pipeline, dt)
@@ -91,8 +91,8 @@ def main(argv=None):
         "depth_layers": args.depth,
         "substeps": args.substeps,
         "iterations": args.iterations,
-        "fluid_max_iterations": args.max_passes,
-        "fluid_density_tolerance": args.tolerance,
+        "fluid_max_iterations": args.max_iterations,
+        "fluid_density_tolerance": args.density_tolerance,
         "fluid_warm_start": args.warm_start,
         "rows": rows,
     }

@@ -17,7 +17,7 @@ ground plane ``--drop`` below the floor. Once the flow has set up (``--skip`` se
 
 Usage::
 
-    python benchmarks/torricelli.py [--spacing 0.02 --hole 4] [--json out.json]
+    python -m benchmarks torricelli [--spacing 0.02 --hole 4] [--json out.json]
 """
 
 from __future__ import annotations
@@ -28,12 +28,13 @@ import time
 
 import numpy as np
 import warp as wp
-from frames import Frames, add_solver_arguments, run_on_device, solver_keywords
-from run_record import write_record
 
 import newton
 from newton.examples.fluid.common import add_water_lattice
 from newton.examples.fluid.progress import track
+
+from .frames import Frames, add_solver_arguments, run_on_device, solver_keywords
+from .run_record import write_record
 
 GRAVITY = 9.81  # [m/s^2]
 
@@ -144,8 +145,8 @@ def run(args, device) -> dict:
         "initial_head_m": round(args.height / d) * d - zc,
         "substeps": args.substeps,
         "iterations": args.iterations,
-        "viscosity": args.viscosity,
-        "warm_start": args.warm_start,
+        "viscosity": solver.fluid_viscosity,
+        "warm_start": solver.fluid_warm_start,
         "smoothing_length_m": solver.fluid_smoothing_length,
         "nonaffine_damping": solver.fluid_nonaffine_damping,
         "seconds": args.seconds,

@@ -12,7 +12,7 @@ frame's mesh back from the file with ``pxr`` and, with ``--png``, draws it in a 
 
 Usage::
 
-    python benchmarks/usd_surface.py [--particles N] [--frames N] [--usd out.usd] [--png out.png] [--json out.json]
+    python -m benchmarks usd_surface [--particles N] [--frames N] [--usd out.usd] [--png out.png] [--json out.json]
 """
 
 from __future__ import annotations
@@ -27,12 +27,13 @@ import time
 import newton.viewer
 import numpy as np
 import warp as wp
-from run_record import machine_record
 
 import newton
 from newton._src.viewer.gl.fluid.surface_mesh import FluidSurfaceMeshes
 from newton.examples.fluid.example_fluid_xpbd_dam_break import Example
 from newton.examples.fluid.progress import FluidProgress
+
+from .run_record import machine_record
 
 
 def record(args, usd_path: str | None, device) -> dict:

@@ -18,7 +18,7 @@ at rest under its own weight) and is released at T = 0 (the gate gone at once).
 
 Usage::
 
-    python benchmarks/validate_dam_break.py [--resolutions 20 30 40] [--json out.json]
+    python -m benchmarks validate_dam_break [--resolutions 20 30 40] [--json out.json]
 """
 
 from __future__ import annotations
@@ -31,12 +31,13 @@ from pathlib import Path
 
 import numpy as np
 import warp as wp
-from run_record import machine_record
 
 import newton
 from newton._src.solvers.xpbd.fluid.config import DEFAULT_NONAFFINE_DAMPING
 from newton.examples.fluid.common import add_water_lattice
 from newton.examples.fluid.progress import track
+
+from .run_record import machine_record
 
 DATA = Path(__file__).resolve().parent / "data" / "dam_break_koshizuka_oka_1996.json"
 L = 0.146  # column width [m] (Koshizuka & Oka's, after Martin & Moyce)
@@ -156,7 +157,7 @@ def run(per_l: int, args, points: np.ndarray, device) -> dict:
     tolerance = getattr(args, "density_tolerance", 0.0)
     kwargs = {}
     if tolerance > 0.0:
-        kwargs = {"fluid_density_tolerance": tolerance, "fluid_max_iterations": args.density_iterations}
+        kwargs = {"fluid_density_tolerance": tolerance, "fluid_max_iterations": args.max_iterations}
     model, solver, pipeline, dt = build(per_l, args.depth, args, device, **kwargs)
     stepper = Stepper(model, solver, pipeline, dt)
     if args.settle > 0.0:
@@ -204,9 +205,7 @@ def main(argv=None):
     parser.add_argument(
         "--density-tolerance", type=float, default=0.0, help="fluid_density_tolerance (0: fixed iterations)"
     )
-    parser.add_argument(
-        "--density-iterations", type=int, default=8, help="fluid_max_iterations with --density-tolerance"
-    )
+    parser.add_argument("--max-iterations", type=int, default=8, help="fluid_max_iterations with --density-tolerance")
     parser.add_argument(
         "--settle",
         type=float,
@@ -248,7 +247,7 @@ def main(argv=None):
         "floor_friction": args.floor_friction,
         "settle_s": args.settle,
         "fluid_density_tolerance": args.density_tolerance,
-        "fluid_max_iterations": args.density_iterations if args.density_tolerance > 0.0 else 1,
+        "fluid_max_iterations": args.max_iterations if args.density_tolerance > 0.0 else 1,
         "runs": runs,
     }
     if args.json:

@@ -20,7 +20,7 @@ draining tank against Torricelli's speed, and the pressure in a settled column a
 
 import argparse
 import contextlib
-import importlib.util
+import importlib
 import io
 import json
 import sys
@@ -39,15 +39,13 @@ PRESSURE = BENCHMARK.parent / "hydrostatic_pressure.py"
 
 
 def load_benchmark(path=BENCHMARK):
-    spec = importlib.util.spec_from_file_location(path.stem, path)
-    module = importlib.util.module_from_spec(spec)
-    # (it imports its sibling run_record, as it does when run as a script)
-    sys.path.insert(0, str(path.parent))
+    """The module of the benchmark at ``path``, imported as the case of the ``benchmarks`` package it is."""
+    root = str(path.parents[1])
+    sys.path.insert(0, root)
     try:
-        spec.loader.exec_module(module)
+        return importlib.import_module(f"benchmarks.{path.stem}")
     finally:
-        sys.path.remove(str(path.parent))
-    return module
+        sys.path.remove(root)
 
 
 def surge_args(iterations: int) -> argparse.Namespace:

@@ -1,0 +1,101 @@
+# SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
+# SPDX-License-Identifier: Apache-2.0
+
+"""The benchmark tool: ``python -m benchmarks <case>`` finds every case, and the solver's keywords have one flag name."""
+
+import argparse
+import contextlib
+import importlib
+import io
+import subprocess
+import sys
+import unittest
+from pathlib import Path
+
+from newton.tests.unittest_utils import add_function_test
+
+ROOT = Path(__file__).resolve().parents[2]
+HAS_BENCHMARKS = (ROOT / "benchmarks" / "__main__.py").is_file()
+
+
+class _Parsed(Exception):
+    def __init__(self, parser):
+        super().__init__()
+        self.parser = parser
+
+
+def case_parser(name: str) -> argparse.ArgumentParser:
+    """The argument parser a case's ``main`` builds (caught as it parses, before the case runs)."""
+    module = importlib.import_module(f"benchmarks.{name}")
+    original = argparse.ArgumentParser.parse_args
+
+    def catch(self, *args, **kwargs):
+        raise _Parsed(self)
+
+    argparse.ArgumentParser.parse_args = catch
+    try:
+        module.main([])
+    except _Parsed as parsed:
+        return parsed.parser
+    finally:
+        argparse.ArgumentParser.parse_args = original
+    raise AssertionError(f"benchmarks.{name}.main parsed no arguments")
+
+
+def test_every_case_listed_and_parsed(test, device):
+    if not HAS_BENCHMARKS:
+        test.skipTest("benchmarks/ is part of the source checkout, not of the installed wheel")
+    out = subprocess.run(
+        [sys.executable, "-m", "benchmarks", "--list"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
+    test.assertEqual(out.returncode, 0, out.stderr)
+    sys.path.insert(0, str(ROOT))
+    try:
+        from benchmarks import ALIASES, HELPERS  # noqa: PLC0415
+        from benchmarks.__main__ import cases  # noqa: PLC0415
+        from benchmarks.frames import SOLVER_KEYWORDS, solver_flag  # noqa: PLC0415
+
+        files = sorted(p.stem for p in (ROOT / "benchmarks").glob("*.py") if not p.stem.startswith("_"))
+        test.assertEqual(cases(), [f for f in files if f not in HELPERS])
+        for alias, name in ALIASES.items():
+            test.assertIn(name, cases(), alias)
+        for name in cases():
+            test.assertIn(name, out.stdout)
+            with contextlib.redirect_stdout(io.StringIO()):
+                parser = case_parser(name)
+            # a flag that sets a solver keyword is named after it (its help names the keyword first)
+            for action in parser._actions:
+                words = (action.help or "").split()
+                keyword = words[0] if words else None
+                if keyword in SOLVER_KEYWORDS:
+                    with test.subTest(case=name, keyword=keyword):
+                        test.assertIn(solver_flag(keyword), action.option_strings)
+    finally:
+        sys.path.remove(str(ROOT))
+
+
+def test_unknown_case_is_refused(test, device):
+    if not HAS_BENCHMARKS:
+        test.skipTest("benchmarks/ is part of the source checkout, not of the installed wheel")
+    out = subprocess.run(
+        [sys.executable, "-m", "benchmarks", "dam_brake"], cwd=ROOT, capture_output=True, text=True, timeout=300
+    )
+    test.assertEqual(out.returncode, 2)
+    test.assertIn("unknown case 'dam_brake'", out.stderr)
+    test.assertIn("dam_break (perf)", out.stderr)
+
+
+class TestFluidBenchmarks(unittest.TestCase):
+    pass
+
+
+for _name, _func in [(n, f) for n, f in globals().items() if n.startswith("test_") and callable(f)]:
+    add_function_test(TestFluidBenchmarks, _name, _func, devices=["cpu"])
+
+if __name__ == "__main__":
+    unittest.main(verbosity=2)
