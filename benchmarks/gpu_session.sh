@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# One measuring session on a CUDA machine: the numbers in docs/performance.md come from here.
+# One measuring session on a CUDA machine: the numbers in docs/archive/performance_notebook.md come from here.
 # Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|collision|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|exact|surge|diffuse|render|usd|gallery|gltests|tests]...
 set -u
 out=${1:?output folder}; shift
@@ -16,7 +16,7 @@ for what in "$@"; do
         --json "$out/dam_break_1m.json" 2>&1 | grep -v '^Module' ;;
     still)
       # still water (docs/validation.md "Still water") and the cost of the step bound and the non-affine damping
-      # (docs/performance.md "Still water"): the solver's defaults against the keywords before them
+      # (docs/archive/performance_notebook.md "Still water"): the solver's defaults against the keywords before them
       python3 -m benchmarks rest_column --device cuda:0 --json "$out/rest_column_12x12x24_${gpu}.json" 2>&1 | grep -A1 '^device'
       python3 -m benchmarks rest_column --device cuda:0 --n 50 --layers 40 --json "$out/rest_column_50x50x40_${gpu}.json" 2>&1 | grep -A1 '^device'
       for v in "" "--relaxation 1 --nonaffine-damping 0" "--viscosity 0" "--viscosity 0 --relaxation 1 --nonaffine-damping 0"; do
@@ -29,7 +29,7 @@ for what in "$@"; do
           --json "$out/dam_break_1m_still${tag}_${gpu}.json" 2>&1 | grep -A1 "^device"
       done ;;
     collision)
-      # the cost of continuous collision at the 100k dam break (docs/performance.md "Continuous collision")
+      # the cost of continuous collision at the 100k dam break (docs/archive/performance_notebook.md "Continuous collision")
       for v in "" "--no-continuous-collision"; do
         tag=${v//[ -.]/_}; echo "== 100k $v"
         python3 -m benchmarks dam_break $v --trials 5 --json "$out/dam_break_100k_collision${tag}_${gpu}.json" 2>&1 | grep -A2 "^device"
@@ -115,7 +115,7 @@ for what in "$@"; do
         "$out"/batched_pouring_4000_${gpu}.json "$out"/batched_multiworld_1000_${gpu}.json --plot "$out/batched_worlds.png" ;;
     gallery)
       # every example captured at its default particle count (1280x720, 30 fps from 60 Hz), its last frame kept:
-      # the stills of docs/gallery.rst and the capture throughput of docs/performance.md.
+      # the stills of docs/gallery.rst and the capture throughput of docs/archive/performance_notebook.md.
       # GALLERY_ONLY="name ..." limits it to some examples (in that order).
       specs=("dam_break 60" "foam 36" "multiworld 120" "interactive_tank 150" "multi_fluid_tank 300"
              "sdf_container 45" "wave_pool 240" "cup_transfer 270" "archimedes_screw 270")
@@ -135,7 +135,7 @@ for what in "$@"; do
       python3 -m pytest -q -rs newton/tests/test_fluid_render_gl.py -k "not resize" 2>&1 | tail -15 ;;
     usd)
       # log_fluid's surface mesh (ViewerUSD): the extraction's cost at the dam break's 100k particles
-      # (docs/performance.md, "Surface mesh"); needs usd-core (pxr), else add --no-usd for the timing alone
+      # (docs/archive/performance_notebook.md, "Surface mesh"); needs usd-core (pxr), else add --no-usd for the timing alone
       python3 -m benchmarks usd_surface --frames 30 --json "$out/usd_surface_100k_${gpu}.json" 2>&1 | grep -v '^Module' ;;
     tests)
       python3 -m pytest -q -k cuda newton/tests/test_solver_xpbd_fluid.py newton/tests/test_fluid_examples.py \

@@ -286,7 +286,7 @@ def test_empty_and_inactive_fluid(test, device):
 def test_pool_of_inactive_fluid_costs_little(test, device):
     # a scene that keeps inactive fluid particles in reserve (an emitter's pool): they sort into one
     # left-out entry, which must not be ordered one by one (on a GPU that took 30 s per build for
-    # 50,000 of them, docs/performance.md)
+    # 50,000 of them, docs/archive/performance_notebook.md)
     pool = 20000
     builder = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))
     add_block(builder, (5, 5, 5), origin=(0.0, 0.0, 0.5))

@@ -31,11 +31,11 @@ the scan needs neither a world nor a cell check per candidate.
 The counting sort replaced Warp's radix sort: at 100k particles on an H100 the radix sort of the
 19-bit keys took 52 us per substep (about 36 us of it fixed cost; ``benchmarks/radix_sort.py``),
 and the counting sort (three launches and a prefix sum) makes a frame of the 100k dam break
-0.15 ms faster, 2.80 against 2.95 ms (docs/performance.md).
+0.15 ms faster, 2.80 against 2.95 ms (docs/archive/performance_notebook.md).
 
 The CUDA code compiles with fast math (approximate division and square root; Warp ignores the
 option on the CPU): the fluid passes' time at up to a few hundred thousand particles is one
-thread's chain of dependent steps, and exact divisions and roots lengthen it (docs/performance.md,
+thread's chain of dependent steps, and exact divisions and roots lengthen it (docs/archive/performance_notebook.md,
 "The floor").
 """
 
@@ -262,7 +262,7 @@ def build_fluid_neighbor_lists(
 
     Thread ``t`` also lists contact ``t`` of ``walls`` as a static wall of its particle's slot
     (:func:`~.walls.list_wall_contact`): a launch of its own would cost more than these threads at
-    the sizes where a frame's time is latency (docs/performance.md, "The floor"). Launched with
+    the sizes where a frame's time is latency (docs/archive/performance_notebook.md, "The floor"). Launched with
     ``max(lanes * n, walls.contact_max)`` threads.
     """
     tid = wp.tid()
@@ -336,7 +336,7 @@ def scan_lanes(device, particle_count: int) -> int:
     Up to a few hundred thousand particles the scan's time is the length of one thread's loop (its
     candidates one after the other), not the GPU's throughput: on an H100, 1,000 particles took
     41 us a scan and 100,000 66 us. Splitting the 27 cells among threads shortens that loop where
-    one thread per particle leaves most of the GPU idle. Measured on an H100 (docs/performance.md),
+    one thread per particle leaves most of the GPU idle. Measured on an H100 (docs/archive/performance_notebook.md),
     ms per frame of the dam break with 1 / 2 / 3 lanes: 100k 2.60 / 2.52 / 2.48 (2 / 3 lanes with fast
     math 2.35 / 2.31); 300k (1.1 waves of resident threads) 5.80 / 5.85 / 5.92; 500k 8.80 / 8.80;
     1M 1 lane 17.5, 3 lanes 19.2 (17.8 with fast math). So: 3

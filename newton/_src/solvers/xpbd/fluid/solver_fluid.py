@@ -503,7 +503,7 @@ class FluidSolver:
         Outside a graph capture the optional passes are not launched while their parameter is 0.
         Inside one they are captured and check the parameter on the device, so that switching them on
         or off later needs no re-capture: a pass that is off then costs its launch (about 2 us a
-        kernel on an H100), less than a conditional node would (about 5 us, docs/performance.md).
+        kernel on an H100), less than a conditional node would (about 5 us, docs/archive/performance_notebook.md).
         The vorticity pass, the last, also recovers the non-finite particles (a pass of its own where
         the vorticity pass is not launched).
         """

@@ -30,7 +30,7 @@ import warp as wp
 # approximate division and square root in CUDA code (Warp ignores it on the CPU): up to a few hundred
 # thousand particles a pass takes as long as one thread's chain of dependent steps, and each pair's
 # direction, mass share and kernel values put divisions and a root on it (100k dam break on an H100:
-# 2.48 -> 2.31 ms per frame, the density errors the same to 0.01 %; docs/performance.md)
+# 2.48 -> 2.31 ms per frame, the density errors the same to 0.01 %; docs/archive/performance_notebook.md)
 wp.set_module_options({"fast_math": True})
 
 # |r| below this fraction of h counts as coincident: the direction r/|r| is not usable there.
