@@ -11,7 +11,7 @@ the column's box and the largest compression at the end is below ``--collapse`` 
 column reaches 50-100 %); the particles outside it at the end that never rose above the walls
 (through a wall or a joint, not over the open top) are counted apart. Each run records the estimate
 g H / c^2 of the bottom's compression, c = iterations x spacing / substep duration
-(docs/validation.md, "Where the method fails"). Prints a table, writes JSON and, with ``--plot``,
+(docs/archive/validation_notebook.md, "Where the method fails"). Prints a table, writes JSON and, with ``--plot``,
 the map (``--inputs``: from a JSON written before).
 
 Usage::

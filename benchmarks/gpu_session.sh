@@ -15,7 +15,7 @@ for what in "$@"; do
       python3 -m benchmarks dam_break --particles 1000000 --warmup-frames 20 --frames 10 --trials 3 \
         --json "$out/dam_break_1m.json" 2>&1 | grep -v '^Module' ;;
     still)
-      # still water (docs/validation.md "Still water") and the cost of the step bound and the non-affine damping
+      # still water (docs/archive/validation_notebook.md "Still water") and the cost of the step bound and the non-affine damping
       # (docs/archive/performance_notebook.md "Still water"): the solver's defaults against the keywords before them
       python3 -m benchmarks rest_column --device cuda:0 --json "$out/rest_column_12x12x24_${gpu}.json" 2>&1 | grep -A1 '^device'
       python3 -m benchmarks rest_column --device cuda:0 --n 50 --layers 40 --json "$out/rest_column_50x50x40_${gpu}.json" 2>&1 | grep -A1 '^device'
@@ -50,7 +50,7 @@ for what in "$@"; do
         echo "== $v"; python3 -m benchmarks dam_break $v --trials 3 --json "$out/dam_break_100k_${v//[ -.]/_}.json" 2>&1 | grep -A1 "^device"
       done ;;
     tolerance-small)
-      # the tolerance on a small splash (1,001 particles), against one fixed iteration (docs/validation.md)
+      # the tolerance on a small splash (1,001 particles), against one fixed iteration (docs/archive/validation_notebook.md)
       for t in 0.01 0.002; do
         python3 -m benchmarks dam_break --particles 1000 --trials 3 --iterations 1 --max-iterations 4 \
           --density-tolerance $t --json "$out/dam_break_1k_tolerance_${t}_${gpu}.json" 2>&1 | grep -A1 "^device"
@@ -66,11 +66,11 @@ for what in "$@"; do
           --json "$out/render_100k_${w}x${h}.json" 2>&1 | grep -v '^Module' | tail -32
       done ;;
     accuracy)
-      # the speed-accuracy sweep of docs/validation.md at 99,200 particles (Koshizuka & Oka column, 40 per L x 31)
+      # the speed-accuracy sweep of docs/archive/validation_notebook.md at 99,200 particles (Koshizuka & Oka column, 40 per L x 31)
       python3 -W ignore -m benchmarks speed_accuracy --per-l 40 --depth 31 --sample-every 6 --tolerances 0.005 0.0025 0.001 \
         --json "$out/speed_accuracy_100k_${gpu}.json" 2>&1 | grep -v '^Module' ;;
     exact)
-      # physical error against cost, problems with exact answers (docs/validation.md "Exact answers"):
+      # physical error against cost, problems with exact answers (docs/archive/validation_notebook.md "Exact answers"):
       # the standing wave (about 100k) and Torricelli's jet (about 150k) over substeps x iterations and modes
       python3 -W ignore -m benchmarks accuracy_chart --size large --device cuda:0 --json "$out/accuracy_chart_${gpu}.json" \
         --plot "$out/accuracy_chart_${gpu}.png" 2>&1 | grep -v '^Module' ;;
@@ -93,7 +93,7 @@ for what in "$@"; do
       $sa --iterations --max-iterations 2 --subpasses 4 --tolerances 0.02 0.01 0.005 \
         --json "$out/speed_accuracy_100k_subpasses_i2_${gpu}.json" ;;
     surge)
-      # the surge front at finer resolutions than the CPU runs of docs/validation.md
+      # the surge front at finer resolutions than the CPU runs of docs/archive/validation_notebook.md
       python3 -m benchmarks validate_dam_break --resolutions 40 60 80 --json "$out/koshizuka_oka_${gpu}.json" 2>&1 | grep -v '^Module' ;;
     diffuse)
       # the same run with diffuse particles on (25,000 capacity), against the plain one of 'bench'

@@ -3,7 +3,7 @@
 
 """Where the fluid solve is pushed past its limits: it degrades without NaN, loss or silent failure.
 
-Small scenes (CPU always, CUDA when present); the measured boundaries are in docs/validation.md
+Small scenes (CPU always, CUDA when present); the measured boundaries are in docs/archive/validation_notebook.md
 (``benchmarks/stability_map.py``).
 """
 
@@ -135,7 +135,7 @@ def test_collapsing_column_stays_inside_tank_walls(test, device):
     add_tank(builder, hx, hy, height, 0.05)
     model = builder.finalize(device=device)
     model.soft_contact_mu = 0.0
-    # g H / c^2 = 23 % with c = 1 x spacing / substep: the column does not hold (docs/validation.md, "deep fluid")
+    # g H / c^2 = 23 % with c = 1 x spacing / substep: the column does not hold (docs/archive/validation_notebook.md, "deep fluid")
     # 8 substeps per 1/60 s, stepped one at a time: a particle thrown just over a wall's top can be above it
     # for less than a frame
     sim = Sim(model, substeps=1, fps=480.0, contacts=True, iterations=1, fluid_rest_distance=d)

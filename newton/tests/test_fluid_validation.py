@@ -6,7 +6,7 @@
 Runs ``benchmarks/validate_dam_break.py`` (part of the source checkout) at 20 particles across
 the column width with the solver's defaults (2 iterations, 8 substeps, no cohesion, no viscosity,
 no speed clamp, frictionless floor). At that setting the front was measured 4 % behind to 17 %
-ahead of the experiment (docs/validation.md); the bounds here catch a front that is held back
+ahead of the experiment (docs/archive/validation_notebook.md); the bounds here catch a front that is held back
 (e.g. by a speed clamp) or runs away, not the last few percent.
 
 Runs ``benchmarks/hydrostatic_drift.py`` with ``fluid_density_ramp=0.001`` for the issue's
@@ -15,7 +15,7 @@ hydrostatic target: a settled column drifts less than 0.05 spacings over 5 s.
 Runs ``benchmarks/sloshing.py``, ``benchmarks/torricelli.py`` and ``benchmarks/hydrostatic_pressure.py``
 small, against exact answers: the first standing wave's period against linear theory, the jet of a
 draining tank against Torricelli's speed, and the pressure in a settled column against rho g (H - z)
-(docs/validation.md "Exact answers").
+(docs/archive/validation_notebook.md "Exact answers").
 """
 
 import argparse
@@ -86,7 +86,7 @@ def test_converged_surge_front_within_bound(test, device):
     # The surge front is a reported figure, not a target (issue #27): with 4 iterations it has converged
     # (20 / 30 / 40 per L within 1.2 % of each other) and runs ahead of the experiment: here (20 per L, 4
     # particles deep, CPU) by up to 16.3 % (18.6 % 6 deep), the gate's lift and the floor's boundary layer
-    # being what the model leaves out (docs/validation.md). The bound it is held to: every point within 20 %.
+    # being what the model leaves out (docs/archive/validation_notebook.md). The bound it is held to: every point within 20 %.
     if not BENCHMARK.is_file():
         test.skipTest("benchmarks/ is part of the source checkout, not of the installed wheel")
     bench = load_benchmark()
@@ -107,7 +107,7 @@ def test_settled_column_stays_at_rest(test, device):
     # 6 x 6 x 10 particles in a walled tank, 8 substeps x 2 iterations, viscosity 0.05: after 8 s of settling
     # the mean displacement over the next 5 s. Measured 0.041 spacings (CPU, the default stable step and
     # non-affine damping; 0.023 with a step of 1 and no damping, whose column hummed instead) with the ramp;
-    # without it the settled packing keeps slipping (0.046-0.097 in the runs of docs/validation.md)
+    # without it the settled packing keeps slipping (0.046-0.097 in the runs of docs/archive/validation_notebook.md)
     if not HYDROSTATIC.is_file():
         test.skipTest("benchmarks/ is part of the source checkout, not of the installed wheel")
     bench = load_benchmark(HYDROSTATIC)

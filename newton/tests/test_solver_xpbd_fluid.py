@@ -214,7 +214,7 @@ def test_hydrostatic_column_stays_at_rest(test, device):
     # a surface particle may hop now and then (seen up to 0.055 m/s on an H100, where atomics make runs
     # differ), so the bulk is judged by its RMS speed and the hop by a looser bound. The settled packing
     # also slips now and then as a whole (RMS speed above 0.01 m/s in 3 of 19 H100 runs; 0.029 m/s,
-    # max 0.115 m/s, on the CPU after 17 s; docs/validation.md), while a column that does not settle
+    # max 0.115 m/s, on the CPU after 17 s; docs/archive/validation_notebook.md), while a column that does not settle
     # (no viscosity) has an RMS speed of 0.24 m/s and a max of 0.93 m/s here: the bounds lie between
     speed = np.linalg.norm(sim.qd(), axis=1)
     test.assertLess(np.sqrt(np.mean(speed**2)), 0.05)

@@ -260,61 +260,40 @@ def activate(xpbd_module) -> None:
 
 
 _FLUID_DOC = """
-        Fluid keywords (newton-fluid), for particles flagged :attr:`~newton.ParticleFlags.FLUID`:
+        Fluid keywords (newton-fluid), for particles flagged :attr:`~newton.ParticleFlags.FLUID`; the README's
+        parameter table and docs/validation.rst say what each setting does to the flow:
             fluid_rest_distance: Rest spacing of the fluid particles [m], > 0. Required when fluid particles exist.
             fluid_smoothing_length: Kernel support radius h [m], in (rest distance, 4 x rest distance].
                 Defaults to 1.8 x ``fluid_rest_distance``.
-            fluid_rest_density: Rest density [kg/m^3], > 0. Defaults to the poly6 density of a cubic lattice at
-                the rest distance with the mean fluid particle mass, so such a lattice is exactly at rest.
-                This is the rest density of a particle of the mean mass; a particle of mass ``m`` has
-                ``fluid_rest_density * m / mean_mass``, so groups of different particle mass at the same
-                spacing are fluids of different density in one solve.
-            fluid_cohesion: Akinci-style pair cohesion, in [0, 1], for pairs below rest density (where the fluid is
-                at rest density the density constraint holds it). Defaults to 0.
-            fluid_viscosity: Per-substep blend toward the neighbourhood velocity, in [0, 1]. Defaults to 0.
-            fluid_nonaffine_damping: Share of each fluid particle's deviation from the affine (uniform,
-                rotating, shearing, expanding) velocity field fitted to its neighbourhood that is removed per
-                1/480 s (one substep at 8 substeps of 60 Hz; a substep of dt removes 1 - (1 - share)^(480 dt)),
-                in [0, 1]. Defaults to 0.1. It dissipates the particle-scale churn of loaded water
-                (a column at rest settles instead of rearranging forever) and leaves motion the kernel resolves
-                alone; flow squeezed past a body at the particle scale is slowed (a floating box settles in
-                about twice the time). 0 switches it off (no cost while viscosity and vorticity are 0 too).
-            fluid_vorticity: Vorticity confinement strength [m/s], >= 0. Defaults to 0 (off).
-            fluid_relaxation: Scale of the density correction of each Jacobi pass, in (0, 2]. Defaults to None:
-                the largest step for which the rest lattice's shortest waves neither grow from pass to pass nor
-                from substep to substep, from the kernel and the passes a substep may run (0.72 at the default
-                kernel with two iterations, 0.48 with one or with a tolerance that may stop after one pass).
-                Above it the fluid's shortest waves grow and water never comes to rest; reading the property
-                gives the value in use.
-            fluid_density_ramp: Compression (of rho/rho0 - 1) over which the density constraint ramps in, in
-                [0, 0.01]. Defaults to 0 (the constraint switches on at rest density). Resting fluid switches
-                that on and off from substep to substep and hums, and its particles drift; 0.001 calms it
-                (a settled column drifts about half as far) and holds every compressed particle half the ramp
-                (0.05 %) more compressed.
-            fluid_max_neighbors: Neighbours used per particle, in [0, 4096]; 0 uses the whole neighbourhood.
-            fluid_density_tolerance: Mean compression (of max(rho/rho0 - 1, 0)) at which the density passes
-                after the first stop, >= 0. Defaults to 0 (no early stop). With ``fluid_max_iterations`` 1
-                the substep's remaining XPBD iterations skip the density pass (``iterations`` is then the
-                most passes); with more, the passes of each iteration after its first stop. Decided on
-                the device. To change it after
-                construction with ``fluid_max_iterations`` 1, create the solver with a value > 0.
-            fluid_max_iterations: Density passes per XPBD iteration, in [1, 64]. Defaults to 1.
-            fluid_max_displacement: Longest travel of a fluid particle in one substep [rest distances], > 0.
-                Defaults to ``inf`` (no limit). Particles that travel more than one rest distance in a
-                substep are counted either way (``fluid_fast_count``; :meth:`fluid_diagnostics` warns):
-                past that they can cross a dynamic body's wall before its contact is found. 1 prevents
-                it: each substep's predicted travel is shortened to it (and the velocity by the same
-                factor), at the cost of the fastest particles' speed.
-            fluid_warm_start: Share of a substep's summed density multipliers that the next substep starts
-                from, in [0, 1). Defaults to 0 (off, no cost). A load the fluid carried, like the weight of a
-                deep column, is then held before the iterations start: about half the compression at the
-                same iteration count for one more correction pass per substep; 0.5 is a good value (above
-                it the fluid over-expands). To change it after construction, create the solver with a value > 0.
-            max_diffuse_particles: Capacity of the ring buffer of diffuse (spray, foam, bubble) particles, >= 0;
-                0 is off (no cost). See ``diffuse_positions`` and the other ``diffuse_*`` attributes.
-            fluid_continuous_collision: Whether each substep's path of every fluid particle is kept out of
-                the static shapes and the shapes of kinematic bodies that collide with particles, so closed
-                containers stay closed at any speed and substep (bool). Defaults to True; set at construction.
+            fluid_rest_density: Rest density of a particle of the mean fluid mass [kg/m^3], > 0 (one of mass ``m``
+                has ``m / mean`` times it). Defaults to the poly6 density of the cubic lattice at the rest distance.
+            fluid_cohesion: Strength of the Akinci pair cohesion of under-dense pairs [dimensionless], in [0, 1].
+                Defaults to 0.
+            fluid_viscosity: Blend toward the neighbourhood velocity per substep [dimensionless], in [0, 1].
+                Defaults to 0.
+            fluid_nonaffine_damping: Share of each particle's deviation from its neighbourhood's affine velocity
+                field removed per 1/480 s [dimensionless], in [0, 1]; 0 is off. Defaults to 0.1.
+            fluid_vorticity: Vorticity confinement strength [m/s], >= 0; 0 is off. Defaults to 0.
+            fluid_relaxation: Scale of each Jacobi density correction [dimensionless], in (0, 2]. Defaults to None:
+                the largest step stable for the kernel and the pass count (the property reads the value in use).
+            fluid_density_ramp: Compression (of rho/rho0 - 1) over which the density constraint ramps in
+                [dimensionless], in [0, 0.01]. Defaults to 0.
+            fluid_max_neighbors: Neighbours kept per particle, in [0, 4096]; 0 keeps the whole neighbourhood.
+                Defaults to 0.
+            fluid_density_tolerance: Mean compression (of max(rho/rho0 - 1, 0)) at which the density passes after a
+                substep's first stop [dimensionless], >= 0; 0 is off, and only a solver created with a value > 0
+                can change it later. Defaults to 0.
+            fluid_max_iterations: Density passes per XPBD iteration, in [1, 64]; above 1 they stop at
+                ``fluid_density_tolerance``. Defaults to 1.
+            fluid_max_displacement: Longest travel of a fluid particle in one substep [rest distances], > 0 or
+                ``inf`` (no limit). Defaults to ``inf``.
+            fluid_warm_start: Share of a substep's summed density multipliers the next substep starts from
+                [dimensionless], in [0, 1); 0 is off, and only a solver created with a value > 0 can change it
+                later. Defaults to 0.
+            max_diffuse_particles: Capacity of the diffuse (spray, foam, bubble) particle buffer, >= 0; 0 is off.
+                Defaults to 0.
+            fluid_continuous_collision: Whether each fluid particle's path is kept out of static and kinematic
+                shapes (bool), set at construction. Defaults to True.
 """
 
 

@@ -15,7 +15,7 @@ from .walls import WALL_CONTACTS_PER_SLOT
 DEFAULT_SMOOTHING_RATIO = 1.8
 
 
-# share of the particle-scale (non-affine) velocity removed per NONAFFINE_DAMPING_STEP unless given (docs/validation.md,
+# share of the particle-scale (non-affine) velocity removed per NONAFFINE_DAMPING_STEP unless given (docs/archive/validation_notebook.md,
 # "Still water")
 DEFAULT_NONAFFINE_DAMPING = 0.1
 

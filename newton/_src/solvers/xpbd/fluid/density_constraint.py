@@ -55,7 +55,7 @@ def density_constraint_lambda(rho: float, grad_i: wp.vec3, grad_sq: float, p: Fl
     With ``density_ramp`` d > 0 the multiplier is that of ``C^2 / (2 d)`` below d and of ``C - d / 2``
     above (continuous, and so is its slope): particles near rest density, which switch a constraint
     with a kink on and off from substep to substep, take it in gradually, and fluid at rest stops
-    humming, for d / 2 more compression where it carries a load (docs/validation.md, "Hydrostatics").
+    humming, for d / 2 more compression where it carries a load (docs/archive/validation_notebook.md, "Hydrostatics").
     """
     c = wp.max(rho * p.inv_rest_density - 1.0, 0.0)
     d = p.density_ramp

@@ -15,7 +15,7 @@ from .density_constraint import COMPRESSION_BINS, PEAK_COMPRESSION
 from .sph import FluidParams, FluidSlots
 
 #: mean compression max(rho/rho0 - 1, 0) above which :meth:`FluidSolver.diagnostics` warns that the density
-#: solve does not hold the fluid (healthy runs stay below 3 %, docs/validation.md "Where the method fails")
+#: solve does not hold the fluid (healthy runs stay below 3 %, docs/archive/validation_notebook.md "Where the method fails")
 COMPRESSION_WARNING = 0.05
 
 
