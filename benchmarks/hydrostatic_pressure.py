@@ -38,7 +38,7 @@ import numpy as np
 import warp as wp
 
 import newton
-from newton._src.solvers.xpbd.fluid.calibration import rest_lattice
+from newton._src.solvers.xpbd.fluid.calibration import lattice_density, rest_lattice, wall_density_tables
 from newton.examples.fluid.progress import track
 
 from .frames import Frames, add_solver_arguments, run_on_device, solver_keywords
@@ -46,25 +46,35 @@ from .rest_column import GRAVITY, SPACING, build
 from .run_record import write_record
 
 
+def rest_density(solver, mass: float, d: float) -> float:
+    """The rest density in use [kg/m^3]: the one set, else the rest lattice's (the solver's default)."""
+    rho0 = solver.fluid_rest_density
+    return lattice_density(d, solver.fluid_smoothing_length, mass) if rho0 is None else rho0
+
+
 def pressure_factor(solver, mass: float, d: float, dt: float) -> float:
     """``K`` of ``p = -K L`` [Pa/m^2]: the pressure whose lattice gradient the multipliers' pair forces equal."""
-    fluid = solver._fluid
     h = solver.fluid_smoothing_length
     r = np.linalg.norm(rest_lattice(d, h), axis=1)
     r = r[(r > 0.0) & (r < h)]
     spiky = 45.0 / (math.pi * h**6) * (h - r) ** 2
     rho_v = mass / d**3
-    return solver.fluid_relaxation * mass * rho_v * float((spiky * r).sum()) / (3.0 * fluid.rest_density * dt * dt)
+    return (
+        solver.fluid_relaxation
+        * mass
+        * rho_v
+        * float((spiky * r).sum())
+        / (3.0 * rest_density(solver, mass, d) * dt * dt)
+    )
 
 
-def wall_gradient(solver, distance: np.ndarray) -> np.ndarray:
+def wall_gradient(solver, mass: float, d: float, distance: np.ndarray) -> np.ndarray:
     """The walls' share of ``rho / rho0`` differentiated against the distance from the wall [1/m]."""
-    fluid = solver._fluid
-    table = fluid.wall_table_grad.numpy().astype(np.float64)
-    step = solver.fluid_smoothing_length / (len(table) - 1)
+    h = solver.fluid_smoothing_length
+    _, drho = wall_density_tables(d, h, mass)
+    step = h / (len(drho) - 1)
     u = np.clip(distance, 0.0, None) / step
-    scale = fluid.lattice_density / fluid.rest_density
-    return np.interp(u, np.arange(len(table)), table, right=0.0) * scale
+    return np.interp(u, np.arange(len(drho)), drho, right=0.0) / rest_density(solver, mass, d)
 
 
 def run(args, device) -> dict:
@@ -105,8 +115,8 @@ def run(args, device) -> dict:
     weight = count * mass * GRAVITY
     # the walls' pushes on the fluid through their ghost density: the floor (z = 0) and the wall at x = 0
     force = mass * solver.fluid_relaxation / (dt * dt)
-    floor = float(force * (lam * wall_gradient(solver, q[:, 2])).sum())
-    side = float(force * (lam * wall_gradient(solver, q[:, 0])).sum())
+    floor = float(force * (lam * wall_gradient(solver, mass, d, q[:, 2])).sum())
+    side = float(force * (lam * wall_gradient(solver, mass, d, q[:, 0])).sum())
     side_theory = 0.5 * rho_v * GRAVITY * level**2 * edge
     # the pressure per layer, away from the side walls' first layer (their ghost density shares the load)
     p = -pressure_factor(solver, mass, d, dt) * lam

@@ -80,6 +80,16 @@ def poly6_np(r2: np.ndarray, h: float) -> np.ndarray:
     return 315.0 / (64.0 * math.pi * h**9) * np.maximum(h * h - r2, 0.0) ** 3
 
 
+def lattice_density(rest_distance: float, h: float, mass: float) -> float:
+    """Poly6 density [kg/m^3] of a particle of ``mass`` [kg] in the cubic lattice at ``rest_distance`` [m].
+
+    The default rest density (``fluid_rest_density`` None): such a lattice is exactly at rest.
+    """
+    lattice = rest_lattice(rest_distance, h)
+    r2 = np.einsum("ij,ij->i", lattice, lattice)
+    return float(mass * poly6_np(r2, h).sum())
+
+
 def wall_density_tables(rest_distance: float, h: float, mass: float, size: int = WALL_TABLE_SIZE):
     """Poly6 density [kg/m^3] of a lattice at rest continued beyond a plane wall, and its derivative.
 

@@ -19,7 +19,7 @@ import numpy as np
 import warp as wp
 
 from ....geometry import ParticleFlags
-from .calibration import WALL_TABLE_SIZE, poly6_np, rest_lattice, stable_relaxation, wall_density_tables
+from .calibration import WALL_TABLE_SIZE, lattice_density, rest_lattice, stable_relaxation, wall_density_tables
 from .config import (
     AFFINE_REGULARIZER,
     AKINCI_ZERO,
@@ -102,7 +102,7 @@ class FluidSolver:
         self.rest_lattice_neighbors = len(lattice) - 1
         r2 = np.einsum("ij,ij->i", lattice, lattice)
         #: rest density of a regular lattice at the rest distance under the poly6 sum [kg/m^3]
-        self.lattice_density = float(self.mean_mass * poly6_np(r2, h).sum())
+        self.lattice_density = lattice_density(d, h, self.mean_mass)
         # sum |grad C|^2 of a lattice particle at rest (the self term vanishes by symmetry)
         r = np.sqrt(r2[r2 > 0.0])
         grad = 45.0 / (math.pi * h**6) * (h - r) ** 2 * (self.mean_mass / self.lattice_density)
