@@ -9,7 +9,7 @@ import argparse
 
 import warp as wp
 
-from newton._src.solvers.xpbd.fluid.config import FluidConfig
+from newton._src.solvers.xpbd.fluid.config import FLUID_KEYWORDS
 
 
 class Frames:
@@ -49,15 +49,20 @@ class Frames:
         wp.capture_launch(self.graph)
 
 
-#: the solver's ``fluid_*`` keywords (and ``max_diffuse_particles``) with their defaults, from its configuration
-SOLVER_KEYWORDS = {name: f.default for name, f in FluidConfig.__dataclass_fields__.items()}
+#: the solver's ``fluid_*`` keywords (and ``max_diffuse_particles``) with their defaults
+SOLVER_KEYWORDS = FLUID_KEYWORDS
 # keywords a scene sets from its spacing, not from a flag
 _SCENE_KEYWORDS = ("fluid_rest_distance", "fluid_smoothing_length")
 
 
+def _dest(keyword: str) -> str:
+    """The ``argparse`` destination of a solver keyword's flag: ``fluid_density_tolerance`` is ``density_tolerance``."""
+    return keyword.removeprefix("fluid_")
+
+
 def solver_flag(keyword: str) -> str:
     """The command-line flag of a solver keyword: ``fluid_density_tolerance`` is ``--density-tolerance``."""
-    return "--" + keyword.removeprefix("fluid_").replace("_", "-")
+    return "--" + _dest(keyword).replace("_", "-")
 
 
 def add_solver_arguments(parser, defaults: dict | None = None, substeps: int = 8, iterations: int = 2) -> None:
@@ -117,7 +122,7 @@ def solver_keywords(args, spacing: float, damping: bool = True) -> dict:
     for name in SOLVER_KEYWORDS:
         if name in _SCENE_KEYWORDS:
             continue
-        value = getattr(args, name.removeprefix("fluid_"))
+        value = getattr(args, _dest(name))
         if value is not None:
             keywords[name] = value
     if not damping:

@@ -207,6 +207,13 @@ def test_upstream_behaviour_verified(test, device):
     failures = upstream.verify_behaviour({**stock, "_apply_particle_deltas": inverted}, device, fluid)
     test.assertTrue(any("buffer" in f or "predicted positions" in f for f in failures), failures)
 
+    def broken(self, *args, **kwargs):  # an upstream whose step fails outright
+        raise TypeError("step() got an unexpected keyword argument")
+
+    failures = upstream.verify_behaviour({**stock, "step": broken}, device, fluid)
+    test.assertEqual(len(failures), 1, failures)
+    test.assertIn("the probe step raised TypeError", failures[0])
+
 
 @wp.kernel
 def _halve(x: wp.array[wp.vec3], y: wp.array[wp.vec3]):

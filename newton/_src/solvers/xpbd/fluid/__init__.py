@@ -19,12 +19,10 @@ from __future__ import annotations
 import importlib
 
 from . import upstream
-from .config import FluidConfig, FluidTuning
+from .config import FLUID_KEYWORDS, FluidConfig, FluidTuning
 from .solver_fluid import FluidSolver, find_fluid_particles
 
 SUPPORTED_NEWTON_VERSION = upstream.SUPPORTED_NEWTON_VERSION
-
-_FLUID_KWARGS = {name: FluidConfig.__dataclass_fields__[name].default for name in FluidConfig.__dataclass_fields__}
 
 
 def _make_property(name: str, mutable: bool):
@@ -249,14 +247,14 @@ def _additions() -> dict:
         doc="Device counter (``wp.array`` of one int32) of fluid particle substeps that ended with a velocity "
         "that carries the particle more than one rest distance in a substep.",
     )
-    for name in _FLUID_KWARGS:
+    for name in FLUID_KEYWORDS:
         added[name] = _make_property(name, name in FluidConfig.MUTABLE)
     return added
 
 
 def activate(xpbd_module) -> None:
     """Extend ``xpbd_module.SolverXPBD`` (``newton._src.solvers.xpbd``) in place through :mod:`.upstream`; idempotent."""
-    upstream.activate(xpbd_module, _FLUID_KWARGS, _FLUID_DOC, _make_fluid, _reset_fluid, _additions())
+    upstream.activate(xpbd_module, FLUID_KEYWORDS, _FLUID_DOC, _make_fluid, _reset_fluid, _additions())
 
 
 _FLUID_DOC = """

@@ -215,3 +215,7 @@ class FluidTuning:
         if not isinstance(self.concurrent_passes, bool):
             raise ValueError(f"concurrent_passes={self.concurrent_passes!r} is invalid: expected True or False")
         count_in_range("scan_lanes", self.scan_lanes, 3)
+
+
+#: the ``fluid_*`` keywords of ``SolverXPBD`` (and ``max_diffuse_particles``) with their defaults
+FLUID_KEYWORDS = {name: field.default for name, field in FluidConfig.__dataclass_fields__.items()}
