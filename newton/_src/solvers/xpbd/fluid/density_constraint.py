@@ -15,8 +15,7 @@ from .sph import (
     FluidParams,
     FluidSlots,
     akinci_cohesion,
-    fluid_neighbor,
-    fluid_neighbor_layout,
+    neighbor_sum,
     pair_direction,
     pair_share,
     poly6,
@@ -66,19 +65,35 @@ def density_constraint_lambda(rho: float, grad_i: wp.vec3, grad_sq: float, p: Fl
     return -c / (grad_sq + wp.dot(grad_i, grad_i) + p.epsilon)
 
 
-@wp.func
-def density_term(xi: wp.vec3, xj4: wp.vec4, pi: int, sorted_particle: wp.array[wp.int32], j: int, p: FluidParams):
-    """Neighbour ``j``'s share of slot ``i``'s constraint: ``(grad C_i w.r.t. x_j, m W_ij)``, zero beyond ``h``.
+# the density sum's terms: grad C_i w.r.t. x_j (0-2), m W_ij (3), |grad C_i w.r.t. x_j|^2 (4)
+vec5 = wp.types.vector(length=5, dtype=float)
 
-    ``m`` is the reference mass, not ``m_j``: the constraint is on the number density, so that a
-    particle's rest density is in proportion to its own mass and fluids of different density mix.
+
+@wp.struct
+class DensitySlot:
+    """What a neighbour's density term needs of slot ``i``."""
+
+    x: wp.vec3  # position [m]
+    particle: int  # particle index
+
+
+@wp.func
+def density_term(slots: FluidSlots, j: int, me: DensitySlot, p: FluidParams):
+    """Neighbour ``j``'s share of slot ``i``'s constraint: ``(grad C_i w.r.t. x_j, m W_ij, its gradient squared)``.
+
+    Zero beyond ``h``. ``m`` is the reference mass, not ``m_j``: the constraint is on the number density,
+    so that a particle's rest density is in proportion to its own mass and fluids of different density mix.
     """
-    r = xi - wp.vec3(xj4[0], xj4[1], xj4[2])
+    xj4 = slots.xm[j]
+    r = me.x - wp.vec3(xj4[0], xj4[1], xj4[2])
     r2 = wp.dot(r, r)
     if r2 >= p.h2:
-        return wp.vec4(0.0)
-    g = spiky_gradient(r, r2, pi, sorted_particle, j, p) * (p.reference_mass * p.inv_rest_density)
-    return wp.vec4(g[0], g[1], g[2], p.reference_mass * poly6(r2, p))
+        return vec5(0.0)
+    g = spiky_gradient(r, r2, me.particle, slots.particle, j, p) * (p.reference_mass * p.inv_rest_density)
+    return vec5(g[0], g[1], g[2], p.reference_mass * poly6(r2, p), wp.dot(g, g))
+
+
+density_sum = neighbor_sum(density_term, pairwise=True)
 
 
 @wp.func
@@ -126,6 +141,49 @@ def correction_term(
     if p.cohesion > 0.0:
         coh = n * (-share * cohesion * akinci_cohesion(dist, p))
     return wp.spatial_vector(dx, coh)
+
+
+@wp.struct
+class CorrectionSlot:
+    """What a neighbour's correction term needs of slot ``i``."""
+
+    xm: wp.vec4  # position [m] and mass [kg]
+    lam: float  # multiplier
+    rel: float  # relative density rho / rho0
+    particle: int  # particle index
+    lambda_rho: wp.array[wp.vec2]  # every slot's multiplier and relative density
+
+
+@wp.func
+def density_correction_term(slots: FluidSlots, j: int, me: CorrectionSlot, p: FluidParams):
+    """:func:`correction_term` of neighbour ``j`` with this iteration's multipliers and the pair's cohesion share."""
+    lr = me.lambda_rho[j]
+    c = cohesion_weight(me.rel, lr[1], p)
+    return correction_term(me.xm, me.lam, slots.xm[j], lr[0], me.particle, slots.particle, j, p, c)
+
+
+density_correction_sum = neighbor_sum(density_correction_term)
+
+
+@wp.struct
+class WarmStartSlot:
+    """What a neighbour's warm-start term needs of slot ``i``."""
+
+    xm: wp.vec4  # position [m] and mass [kg]
+    lam: float  # carried multiplier
+    particle: int  # particle index
+    warm_lambda: wp.array[float]  # every slot's carried multiplier
+
+
+@wp.func
+def warm_start_term(slots: FluidSlots, j: int, me: WarmStartSlot, p: FluidParams):
+    """The density correction of neighbour ``j`` with the carried multipliers alone: no cohesion."""
+    return wp.spatial_top(
+        correction_term(me.xm, me.lam, slots.xm[j], me.warm_lambda[j], me.particle, slots.particle, j, p, 0.0)
+    )
+
+
+warm_start_sum = neighbor_sum(warm_start_term)
 
 
 @wp.kernel
@@ -177,30 +235,14 @@ def compute_fluid_density_lambda(
     xi4 = slots.xm[i]
     xi = wp.vec3(xi4[0], xi4[1], xi4[2])
     rho = p.reference_mass * poly6(0.0, p)
-    grad_i = wp.vec3(0.0)
-    grad_sq = float(0.0)
-    layout = fluid_neighbor_layout(slots, i)
-    count = layout[2]
-    # two neighbours per trip: their loads are independent and overlap
-    k = int(0)
-    while k + 1 < count:
-        j0 = fluid_neighbor(slots, i, k, layout)
-        j1 = fluid_neighbor(slots, i, k + 1, layout)
-        t0 = density_term(xi, slots.xm[j0], pi, slots.particle, j0, p)
-        t1 = density_term(xi, slots.xm[j1], pi, slots.particle, j1, p)
-        g0 = wp.vec3(t0[0], t0[1], t0[2])
-        g1 = wp.vec3(t1[0], t1[1], t1[2])
-        rho += t0[3] + t1[3]
-        grad_i += g0 + g1
-        grad_sq += wp.dot(g0, g0) + wp.dot(g1, g1)
-        k += 2
-    if k < count:
-        j = fluid_neighbor(slots, i, k, layout)
-        t = density_term(xi, slots.xm[j], pi, slots.particle, j, p)
-        g = wp.vec3(t[0], t[1], t[2])
-        rho += t[3]
-        grad_i += g
-        grad_sq += wp.dot(g, g)
+    me = DensitySlot()
+    me.x = xi
+    me.particle = pi
+    # the sum starts from the particle's own share
+    t = density_sum(slots, i, me, p, vec5(0.0, 0.0, 0.0, rho, 0.0))
+    rho = t[3]
+    grad_i = wp.vec3(t[0], t[1], t[2])
+    grad_sq = t[4]
     # the walls do not move: their gradient only adds to the particle's own
     wall = fluid_wall_share(slots, i, xi, p, wall_table, wall_table_grad)
     wall_g = wp.vec3(wall[0], wall[1], wall[2])
@@ -320,26 +362,13 @@ def apply_fluid_density_correction(
     lam_i = lr_i[0]
     rel_i = lr_i[1]
     wall_g = wall_grad[i]
-    acc = wp.spatial_vector(wp.vec3(0.0), wp.vec3(0.0))
-    layout = fluid_neighbor_layout(slots, i)
-    count = layout[2]
-    # two neighbours per trip: their loads are independent and overlap
-    k = int(0)
-    while k + 1 < count:
-        j0 = fluid_neighbor(slots, i, k, layout)
-        j1 = fluid_neighbor(slots, i, k + 1, layout)
-        lr0 = lambda_rho[j0]
-        lr1 = lambda_rho[j1]
-        c0 = cohesion_weight(rel_i, lr0[1], p)
-        c1 = cohesion_weight(rel_i, lr1[1], p)
-        acc += correction_term(xi4, lam_i, slots.xm[j0], lr0[0], pi, slots.particle, j0, p, c0)
-        acc += correction_term(xi4, lam_i, slots.xm[j1], lr1[0], pi, slots.particle, j1, p, c1)
-        k += 2
-    if k < count:
-        j = fluid_neighbor(slots, i, k, layout)
-        lr = lambda_rho[j]
-        c = cohesion_weight(rel_i, lr[1], p)
-        acc += correction_term(xi4, lam_i, slots.xm[j], lr[0], pi, slots.particle, j, p, c)
+    me = CorrectionSlot()
+    me.xm = xi4
+    me.lam = lam_i
+    me.rel = rel_i
+    me.particle = pi
+    me.lambda_rho = lambda_rho
+    acc = density_correction_sum(slots, i, me, p, wp.spatial_vector(wp.vec3(0.0), wp.vec3(0.0)))
     dx = wp.spatial_top(acc) + wall_g * lam_i
     coh = wp.spatial_bottom(acc)
     dx = relaxed_correction(dx, p)
@@ -403,13 +432,12 @@ def apply_fluid_warm_start(
         return
     xi = wp.vec3(xi4[0], xi4[1], xi4[2])
     wall = fluid_wall_share(slots, i, xi, p, wall_table, wall_table_grad)
-    dx = wp.vec3(wall[0], wall[1], wall[2]) * lam_i
-    layout = fluid_neighbor_layout(slots, i)
-    count = layout[2]
-    for k in range(count):
-        j = fluid_neighbor(slots, i, k, layout)
-        # the multipliers alone: no cohesion
-        dx += wp.spatial_top(correction_term(xi4, lam_i, slots.xm[j], warm_lambda[j], pi, slots.particle, j, p, 0.0))
+    me = WarmStartSlot()
+    me.xm = xi4
+    me.lam = lam_i
+    me.particle = pi
+    me.warm_lambda = warm_lambda
+    dx = warm_start_sum(slots, i, me, p, wp.vec3(wall[0], wall[1], wall[2]) * lam_i)
     dx = relaxed_correction(dx, p)
     particle_deltas[pi] = particle_deltas[pi] + dx
     moved_xm[i] = wp.vec4(xi[0] + dx[0], xi[1] + dx[1], xi[2] + dx[2], xi4[3])

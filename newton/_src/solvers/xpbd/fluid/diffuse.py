@@ -31,7 +31,7 @@ import warp as wp
 
 from ....geometry import GeoType
 from .neighbors import _NO_WORLD, fluid_cell, fluid_cell_hash, fluid_cell_range
-from .sph import FluidParams, FluidSlots, fluid_neighbor, fluid_neighbor_layout
+from .sph import FluidParams, FluidSlots, neighbor_sum
 
 DIFFUSE_DEAD = wp.constant(-1)
 DIFFUSE_SPRAY = wp.constant(0)
@@ -73,6 +73,41 @@ def _potential(value: float, lo: float, hi: float):
     return wp.clamp((value - lo) / (hi - lo), 0.0, 1.0)
 
 
+@wp.struct
+class EmitterSlot:
+    """What a neighbour's share of the emission potentials needs of slot ``i``."""
+
+    x: wp.vec3  # position [m]
+    v: wp.vec3  # velocity [m/s]
+    velocity: wp.array[wp.vec3]  # every slot's velocity [m/s]
+
+
+@wp.func
+def emission_term(slots: FluidSlots, j: int, me: EmitterSlot, p: FluidParams):
+    """Neighbour ``j``'s share of the surface normal (xyz, ``sum w x_hat``) and of the trapped air (w).
+
+    Trapped air: the relative speed of the pair weighted by how far it is from moving along their
+    line, ``|v_ij| (1 - v_ij_hat . x_hat) w`` with ``w = 1 - r / h`` (Ihmsen et al. 2012).
+    """
+    xj4 = slots.xm[j]
+    xij = me.x - wp.vec3(xj4[0], xj4[1], xj4[2])
+    r = wp.length(xij)
+    if r >= p.h or r <= 0.0:
+        return wp.vec4(0.0)
+    w = 1.0 - r / p.h
+    xhat = xij / r
+    normal = w * xhat
+    vij = me.v - me.velocity[j]
+    speed = wp.length(vij)
+    trapped_air = float(0.0)
+    if speed > 0.0:
+        trapped_air = speed * (1.0 - wp.dot(vij / speed, xhat)) * w
+    return wp.vec4(normal[0], normal[1], normal[2], trapped_air)
+
+
+emission_sum = neighbor_sum(emission_term)
+
+
 @wp.kernel
 def emit_diffuse_particles(
     params: wp.array[FluidParams],
@@ -102,24 +137,13 @@ def emit_diffuse_particles(
     p = params[0]
     xi4 = slots.xm[i]
     xi = wp.vec3(xi4[0], xi4[1], xi4[2])
-    trapped_air = float(0.0)
-    normal = wp.vec3(0.0)
-    layout = fluid_neighbor_layout(slots, i)
-    count = layout[2]
-    for k in range(count):
-        j = fluid_neighbor(slots, i, k, layout)
-        xj4 = slots.xm[j]
-        xij = xi - wp.vec3(xj4[0], xj4[1], xj4[2])
-        r = wp.length(xij)
-        if r >= p.h or r <= 0.0:
-            continue
-        w = 1.0 - r / p.h
-        xhat = xij / r
-        normal += w * xhat
-        vij = vi - sorted_v[j]
-        speed = wp.length(vij)
-        if speed > 0.0:
-            trapped_air += speed * (1.0 - wp.dot(vij / speed, xhat)) * w
+    me = EmitterSlot()
+    me.x = xi
+    me.v = vi
+    me.velocity = sorted_v
+    sums = emission_sum(slots, i, me, p, wp.vec4(0.0))
+    normal = wp.vec3(sums[0], sums[1], sums[2])
+    trapped_air = sums[3]
     wave_crest = float(0.0)
     n_len = wp.length(normal)
     if n_len > 0.0:

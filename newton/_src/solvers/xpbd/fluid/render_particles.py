@@ -17,24 +17,54 @@ Nothing here feeds back into the simulation.
 
 import warp as wp
 
-from .sph import FluidParams, FluidSlots, fluid_neighbor, fluid_neighbor_layout
+from .sph import FluidParams, FluidSlots, fluid_neighbor_layout, neighbor_sum
 
 # below this many neighbours a covariance says little about the shape: draw a sphere
 MIN_NEIGHBORS = 6
 
 
+@wp.struct
+class RenderSlot:
+    """What a neighbour's weighted position and spread need of slot ``i``."""
+
+    x: wp.vec3  # position [m]
+    mean: wp.vec3  # weighted mean of the neighbourhood [m] (for the spread)
+
+
 @wp.func
-def weighted_neighbor(slots: FluidSlots, i: int, k: int, layout: wp.vec3i, xi: wp.vec3, h2: float):
-    """Position (xyz) and weight ``1 - (r/h)^3`` (w, 0 beyond h) of the ``k``-th neighbour of slot ``i``."""
-    xj4 = slots.xm[fluid_neighbor(slots, i, k, layout)]
+def neighbor_weight(slots: FluidSlots, j: int, me: RenderSlot, p: FluidParams):
+    """Position (xyz) and weight ``1 - (r/h)^3`` (w, 0 beyond h) of neighbour ``j``."""
+    xj4 = slots.xm[j]
     xj = wp.vec3(xj4[0], xj4[1], xj4[2])
-    r = xj - xi
+    r = xj - me.x
     r2 = wp.dot(r, r)
     w = float(0.0)
-    if r2 < h2:
-        q = wp.sqrt(r2 / h2)
+    if r2 < p.h2:
+        q = wp.sqrt(r2 / p.h2)
         w = 1.0 - q * q * q
     return wp.vec4(xj[0], xj[1], xj[2], w)
+
+
+@wp.func
+def weighted_position_term(slots: FluidSlots, j: int, me: RenderSlot, p: FluidParams):
+    """Neighbour ``j``'s weighted position (xyz) and weight (w)."""
+    n = neighbor_weight(slots, j, me, p)
+    xw = wp.vec3(n[0], n[1], n[2]) * n[3]
+    return wp.vec4(xw[0], xw[1], xw[2], n[3])
+
+
+@wp.func
+def spread_term(slots: FluidSlots, j: int, me: RenderSlot, p: FluidParams):
+    """Neighbour ``j``'s weighted outer product of its offset from the mean."""
+    n = neighbor_weight(slots, j, me, p)
+    d = wp.vec3(n[0], n[1], n[2]) - me.mean
+    return wp.outer(d, d) * n[3]
+
+
+weighted_position_sum = neighbor_sum(weighted_position_term)
+
+
+spread_sum = neighbor_sum(spread_term)
 
 
 @wp.kernel
@@ -73,28 +103,22 @@ def compute_fluid_render_particles(
     pi = slots.particle[i]
     if pi < 0:
         return
-    h2 = params[0].h2
+    p = params[0]
+    h2 = p.h2
     xi4 = slots.xm[i]
     xi = wp.vec3(xi4[0], xi4[1], xi4[2])
-    layout = fluid_neighbor_layout(slots, i)
-    count = layout[2]
-    w_sum = float(1.0)
-    mean = xi
-    for k in range(count):
-        n = weighted_neighbor(slots, i, k, layout, xi, h2)
-        w_sum += n[3]
-        mean += wp.vec3(n[0], n[1], n[2]) * n[3]
-    mean = mean / w_sum
+    me = RenderSlot()
+    me.x = xi
+    # the particle itself at weight 1
+    sums = weighted_position_sum(slots, i, me, p, wp.vec4(xi[0], xi[1], xi[2], 1.0))
+    w_sum = sums[3]
+    mean = wp.vec3(sums[0], sums[1], sums[2]) / w_sum
     render_positions[pi] = xi * (1.0 - smoothing) + mean * smoothing
-    if count < MIN_NEIGHBORS:
+    if fluid_neighbor_layout(slots, i)[2] < MIN_NEIGHBORS:
         return
+    me.mean = mean
     d = xi - mean
-    cov = wp.outer(d, d)
-    for k in range(count):
-        n = weighted_neighbor(slots, i, k, layout, xi, h2)
-        d = wp.vec3(n[0], n[1], n[2]) - mean
-        cov += wp.outer(d, d) * n[3]
-    cov = cov / w_sum
+    cov = spread_sum(slots, i, me, p, wp.outer(d, d)) / w_sum
     q, e = wp.eig3(cov)
     floor = 1.0e-6 * h2
     s0 = wp.sqrt(wp.max(e[0], floor))

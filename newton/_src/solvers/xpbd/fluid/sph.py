@@ -10,7 +10,8 @@ current positions and masses of all slots are held in slot order in ``slots.xm``
 (``xyz`` = position [m], ``w`` = mass [kg]) so that neighbour reads are coherent:
 gathered by the build, or written by the correction pass of the iteration before
 (:class:`~.density_constraint.ParticleApply`). :class:`FluidSlots` bundles these arrays, and
-:func:`fluid_neighbor_layout` with :func:`fluid_neighbor` is how every pass walks a slot's neighbours.
+:func:`fluid_neighbor_layout` with :func:`fluid_neighbor` is how every pass walks a slot's neighbours;
+:func:`neighbor_sum` makes the loop of a pass that sums one term over them.
 
 Scalar parameters are read from a one-element :class:`FluidParams` array, not passed
 by value, so that changing them between steps also changes a captured CUDA graph.
@@ -24,6 +25,7 @@ References:
 """
 
 import enum
+from typing import Any
 
 import warp as wp
 
@@ -188,6 +190,40 @@ def fluid_neighbor(slots: FluidSlots, i: int, k: int, layout: wp.vec3i):
     cap = slots.lane_capacity
     row = k + wp.where(k >= layout[0], cap - layout[0], 0) + wp.where(k >= layout[1], cap + layout[0] - layout[1], 0)
     return slots.neighbors[row * slots.particle.shape[0] + i]
+
+
+def neighbor_sum(term, pairwise: bool = False):
+    """A ``wp.func`` ``(slots, i, me, p, zero)`` summing ``term(slots, j, me, p)`` over the neighbours ``j`` of slot ``i``.
+
+    ``me`` is what the term needs of slot ``i`` (a struct of the pass), ``zero`` the sum's starting value
+    and type. Two neighbours per trip: their loads are independent and overlap (kept over one per trip;
+    four gain nothing: docs/archive/performance_notebook.md). With ``pairwise`` a trip's two terms are
+    added together before they join the sum, else one after the other (each pass keeps the order, and
+    so the rounding, it has always had). Each term gets its own function, named after it, so that two
+    sums in one module do not overload each other.
+    """
+
+    def sum_over_neighbors(slots: FluidSlots, i: int, me: Any, p: FluidParams, zero: Any):
+        layout = fluid_neighbor_layout(slots, i)
+        count = layout[2]
+        acc = zero
+        k = int(0)
+        while k + 1 < count:
+            j0 = fluid_neighbor(slots, i, k, layout)
+            j1 = fluid_neighbor(slots, i, k + 1, layout)
+            if wp.static(pairwise):
+                acc += wp.static(term)(slots, j0, me, p) + wp.static(term)(slots, j1, me, p)
+            else:
+                acc += wp.static(term)(slots, j0, me, p)
+                acc += wp.static(term)(slots, j1, me, p)
+            k += 2
+        if k < count:
+            acc += wp.static(term)(slots, fluid_neighbor(slots, i, k, layout), me, p)
+        return acc
+
+    sum_over_neighbors.__name__ = sum_over_neighbors.__qualname__ = f"sum_over_neighbors_of_{term.key}"
+    sum_over_neighbors.__module__ = term.func.__module__
+    return wp.func(sum_over_neighbors)
 
 
 @wp.func

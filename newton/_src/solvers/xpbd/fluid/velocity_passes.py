@@ -12,7 +12,7 @@ and, as the substep's last pass, recovers particles whose state went non-finite.
 import warp as wp
 
 from ....geometry import ParticleFlags
-from .sph import FluidParams, FluidSlots, fluid_neighbor, fluid_neighbor_layout, poly6, spiky_gradient
+from .sph import FluidParams, FluidSlots, fluid_neighbor, fluid_neighbor_layout, neighbor_sum, poly6, spiky_gradient
 
 # approximate division and square root in CUDA code (no effect on the CPU; see :mod:`.sph`)
 wp.set_module_options({"fast_math": True})
@@ -112,6 +112,8 @@ def apply_fluid_viscosity(
     sxx = wp.mat33(0.0)
     svx = wp.mat33(0.0)
     omega = wp.vec3(0.0)
+    # six moments at once, one neighbour per trip (two per trip gained nothing at 100k and lost at 1M:
+    # docs/archive/performance_notebook.md): written out rather than a neighbor_sum of a 28-float term
     layout = fluid_neighbor_layout(slots, i)
     count = layout[2]
     for k in range(count):
@@ -145,6 +147,31 @@ def apply_fluid_viscosity(
         particle_qd[pi] = v
     if compute_vorticity:
         vorticity[i] = omega
+
+
+@wp.struct
+class VorticitySlot:
+    """What a neighbour's share of the vorticity-magnitude gradient needs of slot ``i``."""
+
+    x: wp.vec3  # position [m]
+    particle: int  # particle index
+    density: wp.array[float]  # every slot's density [kg/m^3]
+    vorticity: wp.array[wp.vec3]  # every slot's vorticity [1/s]
+
+
+@wp.func
+def vorticity_gradient_term(slots: FluidSlots, j: int, me: VorticitySlot, p: FluidParams):
+    """Neighbour ``j``'s share of ``eta = sum_j V_j |omega_j| grad W_ij`` (zero beyond ``h``)."""
+    xj4 = slots.xm[j]
+    r = me.x - wp.vec3(xj4[0], xj4[1], xj4[2])
+    r2 = wp.dot(r, r)
+    if r2 >= p.h2:
+        return wp.vec3(0.0)
+    vol_j = xj4[3] / wp.max(me.density[j], 1.0e-6)
+    return spiky_gradient(r, r2, me.particle, slots.particle, j, p) * (vol_j * wp.length(me.vorticity[j]))
+
+
+vorticity_gradient_sum = neighbor_sum(vorticity_gradient_term)
 
 
 @wp.func
@@ -208,17 +235,12 @@ def confine_vorticity_and_recover(
     if pi >= 0 and p.vorticity > 0.0:
         xi4 = slots.xm[i]
         xi = wp.vec3(xi4[0], xi4[1], xi4[2])
-        eta = wp.vec3(0.0)
-        layout = fluid_neighbor_layout(slots, i)
-        count = layout[2]
-        for k in range(count):
-            j = fluid_neighbor(slots, i, k, layout)
-            xj4 = slots.xm[j]
-            r = xi - wp.vec3(xj4[0], xj4[1], xj4[2])
-            r2 = wp.dot(r, r)
-            if r2 < p.h2:
-                vol_j = xj4[3] / wp.max(density[j], 1.0e-6)
-                eta += spiky_gradient(r, r2, pi, slots.particle, j, p) * (vol_j * wp.length(vorticity[j]))
+        me = VorticitySlot()
+        me.x = xi
+        me.particle = pi
+        me.density = density
+        me.vorticity = vorticity
+        eta = vorticity_gradient_sum(slots, i, me, p, wp.vec3(0.0))
         # grad W points from j to i, so -eta points toward larger |omega|
         eta_len = wp.length(eta)
         if eta_len > 1.0e-9:
