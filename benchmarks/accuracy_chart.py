@@ -29,7 +29,7 @@ import warp as wp
 from newton.examples.fluid.progress import track
 
 from . import hydrostatic_pressure, sloshing, torricelli
-from .run_record import machine_record
+from .run_record import write_record
 
 MODES = {
     "default": [],
@@ -141,17 +141,13 @@ def main(argv=None):
         rows.append(row)
         e = row.get("period_error", row.get("jet_speed_error", row.get("floor_force_error")))
         kept = row.get("amplitude_kept_per_period", float("nan"))
-        if args.json:  # after every run: a run cut short keeps what it measured
-            with open(args.json, "w") as f:
-                json.dump({"benchmark": "accuracy_chart", **machine_record(device), "size": args.size, "rows": rows}, f)
+        # after every run: a run cut short keeps what it measured
+        record = write_record("accuracy_chart", device, {"size": args.size}, args.json, rows=rows)
         print(
             f"{problem:<11}{mode:<16}{row['particles']:>10}{substeps:>5} x {iterations:<1}{row['ms_per_frame']:>10.2f}"
             f"{100 * e:>8.1f}%{kept:>8.3f}{100 * row['mean_abs_density_error']:>8.2f}%"
         )
-    record = {"benchmark": "accuracy_chart", **machine_record(device), "size": args.size, "rows": rows}
-    if args.json:
-        with open(args.json, "w") as f:
-            json.dump(record, f, indent=2)
+    record = write_record("accuracy_chart", device, {"size": args.size}, args.json, rows=rows)
     if args.plot:
         name = device.name if device.is_cuda else "CPU"
         plot(rows, args.plot, f"{name}, {args.size} ({record['date']}): error against cost")

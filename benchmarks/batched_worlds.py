@@ -31,7 +31,7 @@ import newton
 from newton.examples.fluid.progress import track
 
 from . import dam_break
-from .run_record import machine_record
+from .run_record import write_record
 
 
 def build(scene: str, worlds: int, per_world: int, collide_every: int):
@@ -92,6 +92,7 @@ def run(args) -> list[dict]:
             "env_steps_per_s": worlds / seconds,
             "mean_abs_density_error": stats["mean_abs_density_error"],
             "mean_compression": stats["mean_compression"],
+            "max_compression": stats["max_compression"],
             "compressed_particle_substeps": stats["compressed_particle_substeps"],
             "peak_compression": stats["peak_compression"],
             "neighbors_max": stats["neighbors_max"],
@@ -201,9 +202,7 @@ def main(argv=None):
     rows = run(args)
     print(f"device {device.name if device.is_cuda else 'cpu'}")
     report(rows, args)
-    if args.json:
-        with open(args.json, "w") as f:
-            json.dump({**machine_record(device), "rows": rows}, f, indent=1)
+    write_record("batched_worlds", device, {}, args.json, rows=rows)
     if args.plot:
         plot(rows, args.plot)
 

@@ -31,7 +31,7 @@ import numpy as np
 
 from newton.examples.fluid.progress import track
 
-from .run_record import machine_record
+from .run_record import write_record
 
 
 def run_one(per_l: int, iterations: int, args, device) -> dict:
@@ -75,8 +75,11 @@ def run_one(per_l: int, iterations: int, args, device) -> dict:
         "held": bool(held),
         "particles_outside": outside,
         "particles_through_walls": through,
-        "max_compression_end": stats["max_compression"],
-        "mean_compression_end": stats["mean_compression"],
+        "substeps": args.substeps,
+        # at the end
+        "mean_abs_density_error": stats["mean_abs_density_error"],
+        "max_compression": stats["max_compression"],
+        "mean_compression": stats["mean_compression"],
         # 99th percentile of the particles' heights over the run [spacings]: the column's top, and how far it sank
         "top_start_spacings": top[0],
         "top_min_spacings": min(top),
@@ -90,7 +93,8 @@ def plot(result: dict, path: str) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt  # noqa: PLC0415
 
-    runs = result["runs"]
+    # (records written before 2026-11-26 name the rows "runs" and the compression "..._end")
+    runs = result.get("rows", result.get("runs"))
     iterations = sorted({r["iterations"] for r in runs})
     layers = sorted({r["layers"] for r in runs})
     fig, ax = plt.subplots(figsize=(7, 4.5))
@@ -103,7 +107,8 @@ def plot(result: dict, path: str) -> None:
             through = r["particles_through_walls"]
             outcome += f", {through} through walls" if through else " over the top"
         ax.annotate(
-            f"{outcome}\ngH/c² {100 * r['estimate_gH_over_c2']:.1f} %\nmax c {100 * r['max_compression_end']:.0f} %",
+            f"{outcome}\ngH/c² {100 * r['estimate_gH_over_c2']:.1f} %\n"
+            f"max c {100 * r.get('max_compression', r.get('max_compression_end')):.0f} %",
             (x, y),
             ha="center",
             va="center",
@@ -144,33 +149,31 @@ def main(argv=None):
     wp.config.quiet = True
     device = wp.get_device(args.device)
     result = {
-        "benchmark": "column_depth",
-        **machine_record(device),
         "substeps": args.substeps,
         "depth_layers": args.depth,
         "seconds": args.seconds,
         "collapse_threshold": args.collapse,
-        "runs": [],
     }
+    rows = []
     print(
         f"{'layers':>7}{'iters':>6}{'particles':>10}{'gH/c^2':>8}{'held':>6}{'outside':>8}{'through':>8}{'max c':>8}"
         f"{'top sank':>9}"
     )
     for per_l, iterations in track(list(itertools.product(args.per_l, args.iterations)), "column_depth"):
         r = run_one(per_l, iterations, args, device)
-        result["runs"].append(r)
-        if args.json:
-            Path(args.json).write_text(json.dumps(result, indent=1))
-            print(
-                f"{r['layers']:>7}{r['iterations']:>6}{r['particles']:>10}{100 * r['estimate_gH_over_c2']:>7.1f}%"
-                f"{'yes' if r['held'] else 'no':>6}{r['particles_outside']:>8}{r['particles_through_walls']:>8}"
-                f"{100 * r['max_compression_end']:>7.1f}%"
-                f"{r['top_start_spacings'] - r['top_min_spacings']:>9.2f}",
-                flush=True,
-            )
+        rows.append(r)
+        # after every run: a sweep cut short keeps what it measured
+        record = write_record("column_depth", device, result, args.json, rows=rows)
+        print(
+            f"{r['layers']:>7}{r['iterations']:>6}{r['particles']:>10}{100 * r['estimate_gH_over_c2']:>7.1f}%"
+            f"{'yes' if r['held'] else 'no':>6}{r['particles_outside']:>8}{r['particles_through_walls']:>8}"
+            f"{100 * r['max_compression']:>7.1f}%"
+            f"{r['top_start_spacings'] - r['top_min_spacings']:>9.2f}",
+            flush=True,
+        )
     if args.plot:
-        plot(result, args.plot)
-    return result
+        plot(record, args.plot)
+    return record
 
 
 if __name__ == "__main__":

@@ -19,7 +19,6 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import statistics
 import sys
@@ -31,13 +30,11 @@ import warp as wp
 import newton
 from newton._src.solvers.xpbd.fluid.calibration import wall_density_tables
 from newton._src.solvers.xpbd.fluid.config import FluidTuning
-from newton._src.solvers.xpbd.fluid.sph import SlotContent
-from newton._src.solvers.xpbd.fluid.upstream import upstream_step_only
 from newton.examples.fluid.example_fluid_xpbd_dam_break import TANK_HALF_LENGTH, add_dam_break
 from newton.examples.fluid.progress import track
 
 from .frames import add_solver_arguments, solver_keywords
-from .run_record import machine_record
+from .run_record import write_record
 
 
 def poly6(r2: np.ndarray, h: float) -> np.ndarray:
@@ -116,7 +113,7 @@ def measure_density_error(q: np.ndarray, mass: float, spacing: float, h: float, 
 
 def kernel_breakdown(simulate, device) -> list:
     """GPU time per kernel name over one un-captured frame (CUDA only; activity records: the times
-    exclude launch gaps, which :func:`pass_breakdown` includes)."""
+    exclude the gaps between launches)."""
     wp.synchronize_device(device)
     wp.timing_begin(cuda_filter=wp.TIMING_KERNEL | wp.TIMING_KERNEL_BUILTIN | wp.TIMING_MEMSET | wp.TIMING_MEMCPY)
     simulate()
@@ -127,12 +124,6 @@ def kernel_breakdown(simulate, device) -> list:
         t, c = total.get(key, (0.0, 0))
         total[key] = (t + r.elapsed, c + 1)
     return sorted(([k, t, c] for k, (t, c) in total.items()), key=lambda x: -x[1])
-
-
-@wp.kernel
-def copy_vec3(src: wp.array[wp.vec3], dst: wp.array[wp.vec3]):
-    i = wp.tid()
-    dst[i] = src[i]
 
 
 def graph_ms(device, body, replays: int = 30) -> float:
@@ -148,92 +139,6 @@ def graph_ms(device, body, replays: int = 30) -> float:
         wp.synchronize_device(device)
         times.append((time.perf_counter() - t0) * 1000.0)
     return statistics.median(times)
-
-
-def pass_breakdown(solver, collision, states, contacts, substeps: int, iterations: int, dt: float, device) -> dict:
-    """Graph time of each part of a frame, each captured and replayed alone (CUDA only).
-
-    Unlike per-kernel activity records this includes the gaps between the graph's nodes, which at
-    this size are a large part of a frame. The parts run on the current state (they change it).
-    """
-    fluid = solver._fluid
-    deltas = wp.zeros_like(states[0].particle_q)
-
-    def upstream():
-        # the same step without the fluid solve; particle contacts off as in the all-fluid step
-        with upstream_step_only(solver):
-            for _ in range(substeps):
-                collision.collide(states[0], contacts)
-                solver.step(states[0], states[1], None, contacts, dt)
-                states[0], states[1] = states[1], states[0]
-
-    def neighbors():
-        for _ in range(substeps):
-            # with the travel limit, as after prediction (states[1] stands in for the start of the substep)
-            fluid.build_neighborhood(states[0].particle_q, states[1].particle_q, states[0].particle_qd)
-        fluid._join()  # (the step's first density pass waits for the sort and scan on the second stream)
-
-    # as in the step: the correction passes write the applied positions (states[1] stands in for the
-    # start of the substep), so the second iteration and the viscosity pass gather nothing
-    apply = (states[1].particle_q, dt, solver.model.particle_max_velocity, True)
-
-    def density():
-        fluid.contacts = contacts
-        for _ in range(substeps):
-            fluid.slot_content = SlotContent.BUILT
-            for _ in range(iterations):
-                fluid.solve_density(states[0].particle_q, deltas, apply, iterations)
-
-    def finish():
-        for _ in range(substeps):
-            fluid.slot_content = SlotContent.APPLIED_WITH_VELOCITIES
-            fluid.finish_step(states[0], dt)
-
-    def collide():
-        for _ in range(substeps):
-            collision.collide(states[0], contacts)
-
-    def copy_once():
-        wp.launch(copy_vec3, dim=fluid.fluid_count, inputs=[states[0].particle_q], outputs=[deltas], device=device)
-
-    def copies():
-        for _ in range(100):
-            copy_once()
-
-    off = wp.zeros(1, dtype=wp.int32, device=device)
-
-    def conditionals():
-        for _ in range(100):
-            wp.capture_if(off, on_true=copy_once)
-
-    search = fluid.search
-
-    m = solver.model
-
-    def sorts():
-        # keys, sort and gather alone, at the positions of the last build (the key pass counts for the sort)
-        for _ in range(substeps):
-            search.compute_keys(states[0].particle_q, m.particle_flags, m.particle_world, fluid.params)
-            search.sort(states[0].particle_q, m.particle_mass, m.particle_world)
-
-    def lists():
-        # the scan alone, on the slots of the last build (inputs unchanged between launches)
-        for _ in range(substeps):
-            search.scan()
-
-    # the upstream step without the fluid solve lets the particles fall through each other: it goes last
-    parts = {
-        "100 x one-line kernel over the fluid (cost of a node)": copies,
-        "100 x capture_if on a zero flag (cost of a skipped conditional node)": conditionals,
-        "neighbour build": neighbors,
-        "keys and sort": sorts,
-        "neighbour list scan": lists,
-        "density passes": density,
-        "finish (viscosity, recovery)": finish,
-        "collide (upstream)": collide,
-        "collide + step without the fluid solve (upstream)": upstream,
-    }
-    return {name: graph_ms(device, body) for name, body in parts.items()}
 
 
 def run(args) -> dict:
@@ -307,20 +212,15 @@ def run(args) -> dict:
                 wp.capture_launch(capture.graph)
             wp.synchronize_device(device)
             render_ms = (time.perf_counter() - t0) * 1000.0 / 50
-        parts = {}
-        if args.pass_timing and graph is not None:
-            parts = pass_breakdown(solver, collision, states, contacts, args.substeps, args.iterations, dt, device)
 
     # the first frame, the warm-up, the kernel timer's frame and the trials (a graph capture records a
-    # frame without simulating it; the pass timing runs after the density was measured)
+    # frame without simulating it)
     stats = solver.fluid_diagnostics(states[0])
     frames_simulated = 1 + args.warmup_frames + (1 if breakdown else 0) + args.trials * args.frames
     density = {k: float(np.mean([e[k] for e in errors])) for k in errors[0]}
     for key in ("max_compression", "max_compression_walls"):
         density[key] = float(max(e[key] for e in errors))
     return {
-        "benchmark": "dam_break",
-        **machine_record(device),
         "particles": int(model.particle_count),
         "spacing_m": spacing,
         "substeps": args.substeps,
@@ -340,15 +240,14 @@ def run(args) -> dict:
         "fluid_continuous_collision": solver.fluid_continuous_collision,
         "shape_entries_stopped": stats["shape_entries_stopped"],
         "cuda_graph": graph is not None,
-        "scan_lanes": getattr(solver._fluid.search, "lanes", 1),
-        "concurrent_passes": solver._fluid.side_stream is not None,
+        "scan_lanes": args.scan_lanes or "solver's choice",
+        "concurrent_passes": not args.single_stream and device.is_cuda,
         "sim_time_s": frames_simulated * frame_dt,
         "ms_per_frame_median": statistics.median(trials),
         "ms_per_frame_trials": trials,
         **density,
         "update_render_particles_ms": render_ms,
         "kernel_ms_per_frame": breakdown,
-        "graph_ms_per_frame_of_part": parts,
     }
 
 
@@ -370,12 +269,9 @@ def main(argv=None):
     parser.add_argument("--frames", type=int, default=30, help="frames per timed trial")
     parser.add_argument("--trials", type=int, default=5)
     parser.add_argument("--kernel-timing", action="store_true", help="per-kernel GPU time of one frame (CUDA)")
-    parser.add_argument(
-        "--pass-timing", action="store_true", help="graph time of each part of a frame, each replayed alone (CUDA)"
-    )
     args = parser.parse_args(argv)
     wp.config.quiet = True
-    r = run(args)
+    r = write_record("dam_break", wp.get_device(args.device), run(args), args.json)
     cols = ("mean_abs_density_error", "mean_compression", "max_compression")
     print(
         f"{'device':<24}{'particles':>10}{'substeps':>9}{'iters':>6}{'ms/frame':>10}"
@@ -396,11 +292,6 @@ def main(argv=None):
         print(f"per-kernel GPU time of one frame [ms] (launches); sum {busy:.3f} ms, the rest is gaps between them:")
         for name, t, c in r["kernel_ms_per_frame"][:25]:
             print(f"  {t:8.3f}  ({c:4d})  {name}")
-    for name, t in r["graph_ms_per_frame_of_part"].items():
-        print(f"  {t:8.3f} ms/frame  {name} (graph of its own)")
-    if args.json:
-        with open(args.json, "w") as f:
-            json.dump(r, f, indent=1)
     return r
 
 

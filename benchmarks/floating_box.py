@@ -22,9 +22,7 @@ from __future__ import annotations
 
 import argparse
 import itertools
-import json
 import time
-from pathlib import Path
 
 import numpy as np
 import warp as wp
@@ -33,7 +31,7 @@ import newton
 from newton.examples.fluid.common import add_tank
 from newton.examples.fluid.progress import track
 
-from .run_record import machine_record
+from .run_record import write_record
 
 POOL_HALF = 0.5  # inner half-width of the square pool [m]
 DEPTH = 0.4  # water depth at rest spacing [m]
@@ -120,6 +118,7 @@ def run(spacing: float, box_density: float, args, device) -> dict:
         "draft_m": draft,
         "archimedes_draft_m": expected,
         "draft_relative_error": draft / expected - 1.0,
+        "mean_abs_density_error": stats["mean_abs_density_error"],
         "mean_compression": stats["mean_compression"],
         "max_compression": stats["max_compression"],
         "ms_per_frame": ms,
@@ -154,8 +153,6 @@ def main(argv=None):
             flush=True,
         )
     result = {
-        "benchmark": "floating_box",
-        **machine_record(device),
         "substeps": args.substeps,
         "iterations": args.iterations,
         "viscosity": args.viscosity,
@@ -164,11 +161,8 @@ def main(argv=None):
         "box_half_extents_m": BOX_HALF,
         "pool_half_width_m": POOL_HALF,
         "depth_m": DEPTH,
-        "runs": runs,
     }
-    if args.json:
-        Path(args.json).write_text(json.dumps(result, indent=1))
-    return result
+    return write_record("floating_box", device, result, args.json, rows=runs)
 
 
 if __name__ == "__main__":

@@ -17,9 +17,7 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import json
 import sys
-from pathlib import Path
 
 import numpy as np
 import warp as wp
@@ -28,7 +26,7 @@ import newton
 from newton.examples.fluid.common import add_tank
 from newton.examples.fluid.progress import track
 
-from .run_record import machine_record
+from .run_record import write_record
 
 D = 0.1  # spacing [m]
 
@@ -173,8 +171,6 @@ def main(argv=None):
             flush=True,
         )
     result = {
-        "benchmark": "hydrostatic_drift",
-        **machine_record(device),
         "particles": int(model.particle_count),
         "column": [n, n, args.height],
         "packing": args.packing,
@@ -191,11 +187,8 @@ def main(argv=None):
         "settle_s": args.settle,
         "start_max_compression": start["max_compression"],
         "settle_max_speed_m_s": settle_max_speed,
-        "rows": rows,
     }
-    if args.json:
-        Path(args.json).write_text(json.dumps(result, indent=1))
-    return result
+    return write_record("hydrostatic_drift", device, result, args.json, rows=rows)
 
 
 if __name__ == "__main__":

@@ -19,9 +19,9 @@ frame's last substep):
   and the part of each the wall's ghost density carries, ``(m w / dt^2) sum_i L_i grad c_wall(x_i)``
   (the particle-shape contacts carry the rest).
 
-The multipliers are read from the warm-start store: ``fluid_warm_start`` keeps that share of a substep's
-summed multipliers for the next; at the default ``--warm-start 1e-6`` the carried part changes the step
-by a millionth.
+The multipliers are read from the warm-start store (``SolverXPBD.fluid_warm_start_multipliers``):
+``fluid_warm_start`` keeps that share of a substep's summed multipliers for the next; at the default
+``--warm-start 1e-6`` the carried part changes the step by a millionth.
 
 Usage::
 
@@ -104,7 +104,7 @@ def run(args, device) -> dict:
         frame()
         wp.synchronize_device(device)
         simulated += time.perf_counter() - tick
-        lam_sum += solver._fluid.particle_lambda.numpy().astype(np.float64) / args.warm_start
+        lam_sum += solver.fluid_warm_start_multipliers.numpy().astype(np.float64) / args.warm_start
         q_sum += states[0].particle_q.numpy().astype(np.float64)
     wall = time.perf_counter() - start
     lam, q = lam_sum / frames, q_sum / frames

@@ -16,15 +16,13 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import json
 import sys
-from pathlib import Path
 
 import numpy as np
 import warp as wp
 
 from .dam_break import graph_ms
-from .run_record import machine_record
+from .run_record import write_record
 
 SORTS_PER_GRAPH = 8
 
@@ -71,15 +69,8 @@ def main(argv=None):
             us = (graph_ms(device, sorts) - graph_ms(device, restores)) * 1000.0 / SORTS_PER_GRAPH
             rows.append({"bits": bits, "us_per_sort": us})
             print(f"{device.name:<24}{n:>8}{bits:>6}{us:>10.1f}")
-    result = {
-        "benchmark": "radix_sort",
-        **machine_record(device),
-        "keys": n,
-        "rows": rows,
-    }
-    if args.json:
-        Path(args.json).write_text(json.dumps(result, indent=1))
-    return result
+    # Warp's sort alone, no fluid step: one key per fluid particle
+    return write_record("radix_sort", device, {"particles": n, "keys": n}, args.json, rows=rows, fluid_step=False)
 
 
 if __name__ == "__main__":

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import ctypes
-import json
 import os
 import platform
 import statistics
@@ -42,7 +41,7 @@ import newton.viewer
 import newton
 from newton.examples.fluid.example_fluid_xpbd_dam_break import Example
 
-from .run_record import machine_record
+from .run_record import write_record
 
 
 def main(argv=None):
@@ -111,7 +110,6 @@ def main(argv=None):
 
     med = statistics.median
     result = {
-        **machine_record(device),
         "platform": platform.platform(),
         "device": str(device),
         "device_name": device.name,
@@ -122,7 +120,7 @@ def main(argv=None):
         "mean_abs_density_error": stats["mean_abs_density_error"],
         "max_compression": stats["max_compression"],
         "resolution": [args.width, args.height],
-        "cuda_gl_interop": bool(device.is_cuda and fluid._cuda_interop),
+        "cuda_gl_interop": bool(device.is_cuda and fluid.cuda_interop),
         "ms_update_render_particles": med(render_particles),
         "ms_end_frame_without_fluid": med(plain),
         "modes": per_mode,
@@ -145,10 +143,7 @@ def main(argv=None):
             print(f"  {key:<40} {values[key]:8.3f}")
         for key, value in values["gpu_ms_per_pass"].items():
             print(f"  gpu ms, pass {key:<27} {value:8.3f}")
-    if args.json:
-        with open(args.json, "w") as f:
-            json.dump(result, f, indent=2)
-    return result
+    return write_record("render_fluid", device, result, args.json)
 
 
 def log_fluid(viewer, example):

@@ -37,7 +37,7 @@ import numpy as np
 
 from newton.examples.fluid.progress import track
 
-from .run_record import machine_record
+from .run_record import write_record
 
 
 def run_one(args, device, substeps: int, iterations: int, tolerance: float, passes: int = 1) -> dict:
@@ -140,22 +140,18 @@ def sweep(args) -> dict:
     )
     particles = args.per_l * 2 * args.per_l * args.depth
     result = {
-        "benchmark": "speed_accuracy",
-        **machine_record(device),
         "particles": particles,
         "per_L": args.per_l,
         "depth_layers": args.depth,
         "t_end_s": args.t_end,
         "sample_every_frames": args.sample_every,
         "scene": "Koshizuka & Oka 2:1 dam break, tank 5L, no cohesion/viscosity/speed clamp, 60 Hz frames",
-        "runs": runs,
     }
     for config in track(configs, "speed_accuracy"):
         r = run_one(args, device, *config)
         runs.append(r)
-        if args.json:
-            # written after every run, so an interrupted sweep keeps what it measured
-            Path(args.json).write_text(json.dumps(result, indent=1))
+        # written after every run, so an interrupted sweep keeps what it measured
+        record = write_record("speed_accuracy", device, result, args.json, rows=runs)
         print(
             f"{r['mode'][:10]:<10}{r['substeps']:>9}{r['iterations']:>6}{r['fluid_density_tolerance']:>8.4f}"
             f"{r['density_passes_per_substep']:>8.2f}{r['ms_per_frame']:>10.2f}"
@@ -164,7 +160,12 @@ def sweep(args) -> dict:
             f"{100 * r['worst_mean_compression']:>8.2f}%{100 * r['worst_p99_compression']:>9.2f}%",
             flush=True,
         )
-    return result
+    return record
+
+
+def rows_of(record: dict) -> list:
+    """A record's runs (written before 2026-11-26 under "runs", since then under "rows")."""
+    return record.get("rows", record.get("runs", []))
 
 
 def run_mode(run: dict) -> str:
@@ -183,7 +184,7 @@ def plot(inputs: list, reference: str | None, path: str, worst: bool = False):
     for p in inputs:
         result = json.loads(Path(p).read_text())
         row = results.setdefault((result["particles"], result["device"]), {**result, "runs": []})
-        row["runs"] += result["runs"]
+        row["runs"] += rows_of(result)
     results = list(results.values())
     ref = json.loads(Path(reference).read_text()) if reference else None
     # (run's value, the samples' value it reduces, label); with ``worst`` the largest sample of the
@@ -244,7 +245,7 @@ def plot(inputs: list, reference: str | None, path: str, worst: bool = False):
                 and ref.get("per_L") == result.get("per_L")
                 and ref.get("depth_layers") == result.get("depth_layers")
             ):
-                for run in ref["runs"]:
+                for run in rows_of(ref):
                     if "DFSPH" not in run["solver"]:
                         continue
                     s = run["samples"][1:]

@@ -33,7 +33,7 @@ import newton
 from newton.examples.fluid.common import add_closed_tank
 from newton.examples.fluid.progress import track
 
-from .run_record import machine_record
+from .run_record import write_record
 
 FLUID = int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID)
 
@@ -122,14 +122,19 @@ def run_one(args, device, substeps: int, iterations: int, speed: float) -> dict:
         "fast_particle_substeps": int(stats["fast_particle_substeps"]),
         "shape_entries_stopped": int(stats["shape_entries_stopped"]),
         "max_wall_penetration_spacings": max_penetration,
+        # at the end
         "final_rms_speed_m_s": rms,
-        "final_p99_compression": p99,
-        "final_max_compression": float(stats["max_compression"]),
+        "mean_abs_density_error": stats["mean_abs_density_error"],
+        "p99_compression": p99,
+        "max_compression": float(stats["max_compression"]),
     }
 
 
 def plot(result: dict, path: str):
     import matplotlib  # noqa: PLC0415
+
+    # (records written before 2026-11-26 name the rows "runs")
+    result = {**result, "runs": result.get("rows", result.get("runs"))}
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt  # noqa: PLC0415
@@ -237,8 +242,6 @@ def main(argv=None):
             if not r["stable"]:
                 failed.add((it, speed))
         result = {
-            "benchmark": "stability_map",
-            **machine_record(device),
             "particles": args.block**3,
             "spacing_m": args.spacing,
             "seconds": args.seconds,
@@ -246,10 +249,8 @@ def main(argv=None):
             "fluid_max_displacement": args.max_displacement,
             "fluid_continuous_collision": args.continuous_collision,
             "wall_s": time.perf_counter() - t0,
-            "runs": runs,
         }
-        if args.json:
-            Path(args.json).write_text(json.dumps(result, indent=1))
+        result = write_record("stability_map", device, result, args.json, rows=runs)
     if args.plot:
         plot(result, args.plot)
 

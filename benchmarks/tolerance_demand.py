@@ -17,16 +17,14 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import json
 import sys
-from pathlib import Path
 
 import numpy as np
 import warp as wp
 
 from newton.examples.fluid.progress import track
 
-from .run_record import machine_record
+from .run_record import write_record
 
 
 def main(argv=None):
@@ -71,6 +69,7 @@ def main(argv=None):
                 "t_s": frame / 60.0,
                 "passes_per_substep": (passes - passes_before) / (args.every * args.substeps),
                 "rms_speed_m_s": float(np.sqrt(np.mean(speed**2))),
+                "mean_abs_density_error": stats["mean_abs_density_error"],
                 "max_compression": stats["max_compression"],
                 "mean_compression": stats["mean_compression"],
             }
@@ -84,8 +83,6 @@ def main(argv=None):
             flush=True,
         )
     result = {
-        "benchmark": "tolerance_demand",
-        **machine_record(device),
         "particles": int(model.particle_count),
         "per_L": args.per_l,
         "depth_layers": args.depth,
@@ -94,11 +91,8 @@ def main(argv=None):
         "fluid_max_iterations": args.max_iterations,
         "fluid_density_tolerance": args.density_tolerance,
         "fluid_warm_start": args.warm_start,
-        "rows": rows,
     }
-    if args.json:
-        Path(args.json).write_text(json.dumps(result, indent=1))
-    return result
+    return write_record("tolerance_demand", device, result, args.json, rows=rows)
 
 
 if __name__ == "__main__":

@@ -18,7 +18,6 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import statistics
 import tempfile
@@ -33,7 +32,7 @@ from newton._src.viewer.gl.fluid.surface_mesh import FluidSurfaceMeshes
 from newton.examples.fluid.example_fluid_xpbd_dam_break import Example
 from newton.examples.fluid.progress import FluidProgress
 
-from .run_record import machine_record
+from .run_record import write_record
 
 
 def record(args, usd_path: str | None, device) -> dict:
@@ -70,8 +69,6 @@ def record(args, usd_path: str | None, device) -> dict:
         wp.synchronize_device(device)
         times.append((time.perf_counter() - t0) * 1000.0)
     return {
-        "benchmark": "usd_surface",
-        **machine_record(device),
         "particles": int(model.particle_count),
         "frames": args.frames,
         "substeps": int(example.sim_substeps),
@@ -136,7 +133,7 @@ def main(argv=None):
     device = wp.get_device(args.device)
     with tempfile.TemporaryDirectory() as tmp, wp.ScopedDevice(device):
         usd_path = None if args.no_usd else args.usd or os.path.join(tmp, "dam_break.usda")
-        result = record(args, usd_path, device)
+        result = write_record("usd_surface", device, record(args, usd_path, device), args.json)
         if args.png and usd_path is not None:
             draw(usd_path, args.png, tuple(args.size))
     print(f"{'device':<24}{'particles':>10}{'substeps':>9}{'iters':>6}{'density err':>12}{'extract ms':>11}{'tris':>9}")
@@ -144,9 +141,7 @@ def main(argv=None):
         f"{result['device']:<24}{result['particles']:>10}{result['substeps']:>9}{result['iterations']:>6}"
         f"{100 * result['mean_abs_density_error']:>11.2f}%{result['extract_ms_median']:>11.2f}{result['triangles']:>9}"
     )
-    if args.json:
-        with open(args.json, "w") as f:
-            json.dump(result, f, indent=2)
+    return result
 
 
 if __name__ == "__main__":

@@ -37,7 +37,7 @@ from newton._src.solvers.xpbd.fluid.config import DEFAULT_NONAFFINE_DAMPING
 from newton.examples.fluid.common import add_water_lattice
 from newton.examples.fluid.progress import track
 
-from .run_record import machine_record
+from .run_record import write_record
 
 DATA = Path(__file__).resolve().parent / "data" / "dam_break_koshizuka_oka_1996.json"
 L = 0.146  # column width [m] (Koshizuka & Oka's, after Martin & Moyce)
@@ -234,9 +234,7 @@ def main(argv=None):
             f"{100 * r['max_compression']:.2f} %"
         )
     result = {
-        "benchmark": "validate_dam_break",
         "reference": data["source"],
-        **machine_record(device),
         "L_m": L,
         "depth_layers": args.depth,
         "substeps": args.substeps,
@@ -248,11 +246,8 @@ def main(argv=None):
         "settle_s": args.settle,
         "fluid_density_tolerance": args.density_tolerance,
         "fluid_max_iterations": args.max_iterations if args.density_tolerance > 0.0 else 1,
-        "runs": runs,
     }
-    if args.json:
-        Path(args.json).write_text(json.dumps(result, indent=2))
-    return result
+    return write_record("validate_dam_break", device, result, args.json, rows=runs)
 
 
 if __name__ == "__main__":

@@ -7,11 +7,16 @@ import argparse
 import contextlib
 import importlib
 import io
+import json
+import math
+import os
 import subprocess
 import sys
+import tempfile
 import unittest
 from pathlib import Path
 
+import warp as wp
 from newton.tests.unittest_utils import add_function_test
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -88,6 +93,52 @@ def test_unknown_case_is_refused(test, device):
     test.assertEqual(out.returncode, 2)
     test.assertIn("unknown case 'dam_brake'", out.stderr)
     test.assertIn("dam_break (perf)", out.stderr)
+
+
+def test_every_case_writes_the_same_record(test, device):
+    """Each case writes its JSON through run_record.write_record, which refuses a run without the particle
+    count, substeps, iterations and density error (a small case's record carries them on every row), and
+    none reads the solver's private state."""
+    if not HAS_BENCHMARKS:
+        test.skipTest("benchmarks/ is part of the source checkout, not of the installed wheel")
+    sys.path.insert(0, str(ROOT))
+    try:
+        from benchmarks import inactive_pool  # noqa: PLC0415
+        from benchmarks.__main__ import cases  # noqa: PLC0415
+        from benchmarks.run_record import RUN_FIELDS, write_record  # noqa: PLC0415
+
+        for name in cases():
+            with test.subTest(case=name):
+                source = (ROOT / "benchmarks" / f"{name}.py").read_text()
+                test.assertIn("write_record(", source)
+                # and reads the solver and renderer through their public attributes
+                test.assertNotRegex(source, r"\._fluid\b|\._cuda_interop\b")
+        cpu = wp.get_device("cpu")
+        with test.assertRaisesRegex(ValueError, r"'x': the record lacks \['substeps', 'iterations', 'mean_abs"):
+            write_record("x", cpu, {"particles": 10, "max_compression": 0.0}, None)
+        rows = [{"particles": 10, "mean_abs_density_error": 0.0, "max_compression": 0.0}, {"particles": 10}]
+        with test.assertRaisesRegex(ValueError, r"'x': the record row 1 lacks \['mean_abs_density_error'"):
+            write_record("x", cpu, {"substeps": 8, "iterations": 2}, None, rows=rows)
+        write_record("x", cpu, {"substeps": 8, "iterations": 2}, None, rows=rows[:1])  # shared settings count
+        write_record("x", cpu, {"particles": 10}, None, fluid_step=False)
+        with tempfile.TemporaryDirectory() as tmp:
+            path = os.path.join(tmp, "pool.json")
+            with contextlib.redirect_stdout(io.StringIO()):
+                inactive_pool.main(
+                    ["--active", "343", "--pool", "100", "--repeats", "2", "--device", "cpu", "--json", path]
+                )
+            with open(path) as f:
+                record = json.load(f)
+        test.assertEqual(record["benchmark"], "inactive_pool")
+        test.assertEqual(record["device"], "cpu")
+        test.assertEqual([r["inactive"] for r in record["rows"]], [0, 100])
+        for row in record["rows"]:
+            for field in RUN_FIELDS:
+                test.assertIn(field, row)
+            test.assertEqual(row["active"], 343)
+            test.assertTrue(math.isfinite(row["ms_per_substep"]))
+    finally:
+        sys.path.remove(str(ROOT))
 
 
 class TestFluidBenchmarks(unittest.TestCase):

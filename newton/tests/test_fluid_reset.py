@@ -61,7 +61,7 @@ def test_reset_world_replays_and_others_continue(test, device):
     reset_run, plain_run, fresh = make_sim(device), make_sim(device), make_sim(device)
     reset_run.step(8)
     plain_run.step(8)
-    lam_before = by_world(reset_run, reset_run.solver._fluid.particle_lambda)
+    lam_before = by_world(reset_run, reset_run.solver.fluid_warm_start_multipliers)
     test.assertTrue(np.any(lam_before[1] != 0.0), "the warm start carried no multiplier: nothing to clear")
     diffuse_world = reset_run.solver._fluid.diffuse.world.numpy()
     kinds_before = reset_run.solver.diffuse_kinds.numpy()
@@ -75,7 +75,7 @@ def test_reset_world_replays_and_others_continue(test, device):
     q0 = by_world(reset_run, reset_run.model.particle_q)
     np.testing.assert_array_equal(q[1], q0[1])
     np.testing.assert_array_equal(by_world(reset_run, reset_run.state_0.particle_qd)[1], np.tile(THROW[1], (80, 1)))
-    lam = by_world(reset_run, reset_run.solver._fluid.particle_lambda)
+    lam = by_world(reset_run, reset_run.solver.fluid_warm_start_multipliers)
     np.testing.assert_array_equal(lam[1], 0.0)
     for w in (0, 2):
         np.testing.assert_array_equal(lam[w], lam_before[w])

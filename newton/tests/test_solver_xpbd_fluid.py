@@ -1123,7 +1123,7 @@ def test_warm_start_change_takes_effect(test, device):
     result = {}
     for gamma in (0.5, 0.0, 0.5):
         sim.solver.fluid_warm_start = gamma
-        sim.solver._fluid.particle_lambda.zero_()
+        sim.solver.fluid_warm_start_multipliers.zero_()
         sim.state_0.particle_q.assign(model.particle_q)
         sim.state_0.particle_qd.zero_()
         if capture is not None:
@@ -1150,9 +1150,9 @@ def test_warm_start_kept_by_the_last_correction(test, device):
         model.particle_flags.assign(flags)
         # one step for both (the default for a tolerance that may stop after one pass is smaller)
         sim = Sim(model, fluid_warm_start=0.5, fluid_relaxation=0.5, **kwargs)
-        sim.solver._fluid.particle_lambda.fill_(3.0)
+        sim.solver.fluid_warm_start_multipliers.fill_(3.0)
         sim.step(2)
-        return sim.q(), sim.solver._fluid.particle_lambda.numpy()
+        return sim.q(), sim.solver.fluid_warm_start_multipliers.numpy()
 
     q_fixed, lam_fixed = run()
     # a tolerance no substep meets runs every iteration, as the fixed count does
@@ -1170,6 +1170,39 @@ def test_warm_start_kept_by_the_last_correction(test, device):
     gpu_atol = 0.05 * float(np.abs(lam_fixed).max())
     np.testing.assert_allclose(lam_fixed, lam_tol, rtol=1.0e-5, atol=1.0e-9 if exact else gpu_atol)
     np.testing.assert_allclose(q_fixed, q_tol, atol=1.0e-6 if exact else 0.25 * D)
+
+
+def test_warm_start_multipliers_checkpoint(test, device):
+    """With warm start, the carried multipliers are state: restored with positions and velocities, a run
+    continues as it did; restored without them, it does not. Without warm start there are none."""
+
+    def block():
+        return make_model(device, lambda b: add_block(b, (6, 6, 6), spacing=0.9 * D), gravity=-9.81)
+
+    test.assertIsNone(Sim(block()).solver.fluid_warm_start_multipliers)
+    sim = Sim(block(), fluid_warm_start=0.5)
+    sim.step(1)
+    lam = sim.solver.fluid_warm_start_multipliers
+    test.assertEqual(lam.shape, (sim.model.particle_count,))
+    test.assertGreater(np.count_nonzero(lam.numpy()), 50)  # the compressed block carries multipliers
+    saved = (wp.clone(sim.state_0.particle_q), wp.clone(sim.state_0.particle_qd), wp.clone(lam))
+    sim.step(1)
+    q_on = sim.q()
+
+    def resume(multipliers):
+        sim.state_0.particle_q.assign(saved[0])
+        sim.state_0.particle_qd.assign(saved[1])
+        lam.assign(multipliers)
+        sim.step(1)
+        return sim.q()
+
+    q_restored = resume(saved[2])
+    q_cold = resume(wp.zeros_like(saved[2]))
+    if wp.get_device(device).is_cpu:
+        np.testing.assert_array_equal(q_restored, q_on)
+    else:
+        np.testing.assert_allclose(q_restored, q_on, atol=1.0e-5)
+    test.assertGreater(np.abs(q_cold - q_on).max(), 1.0e-4)
 
 
 def test_no_fluid_adds_no_work(test, device):

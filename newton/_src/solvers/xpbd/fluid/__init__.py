@@ -54,6 +54,13 @@ def _diffuse(solver):
     return None if solver._fluid is None else solver._fluid.diffuse
 
 
+def _warm_start_multipliers(solver):
+    fluid = solver._fluid
+    if fluid is None or fluid.particle_lambda.shape[0] == 0:
+        return None
+    return fluid.particle_lambda
+
+
 def _diffuse_property(field: str, doc: str):
     return property(
         lambda self: None if _diffuse(self) is None else getattr(_diffuse(self), field),
@@ -237,6 +244,13 @@ def _additions() -> dict:
         lambda self: None if self._fluid is None else self._fluid.particle_density,
         doc="Per-particle density [kg/m^3] at the state of the last :meth:`fluid_diagnostics` call "
         "(``wp.array`` of ``particle_count``; 0 for non-fluid particles), or ``None`` without fluid.",
+    )
+    added["fluid_warm_start_multipliers"] = property(
+        _warm_start_multipliers,
+        doc="Per-particle density multipliers the next substep starts from: ``fluid_warm_start`` times each "
+        "fluid particle's multipliers summed over the last substep (``wp.array`` of ``particle_count``, float; 0 "
+        "for non-fluid particles), or ``None`` without fluid or warm start. Part of the solver's state: saved "
+        "and restored with a State, a run continues bitwise. The pressure they imply is in docs/validation.rst.",
     )
     added["fluid_nonfinite_count"] = property(
         lambda self: None if self._fluid is None else self._fluid.nonfinite_count,

@@ -184,6 +184,12 @@ class FluidRendererGL:
             raise ValueError(f"splatting={value!r}: expected one of {', '.join(map(repr, SPLATTING_MODES))}")
         self._splatting = value
 
+    @property
+    def cuda_interop(self) -> bool:
+        """Whether CUDA batches reach GL through CUDA-GL shared buffers (``False`` once sharing failed on this
+        context: they go through the host from then on)."""
+        return self._cuda_interop
+
     # ------------------------------------------------------------------ batches
     def set_batch(self, name, positions, radii, material, anisotropy, hidden):
         gl = self.frame.gl
