@@ -31,6 +31,7 @@ import numpy as np
 
 from newton.examples.fluid.progress import track
 
+from .frames import add_solver_arguments, solver_keywords, solver_record
 from .run_record import write_record
 
 
@@ -39,8 +40,10 @@ def run_one(per_l: int, iterations: int, args, device) -> dict:
 
     # walls 2.5L tall, as validate_dam_break.py's own runs
     wall_top = 2.5 * validate.L
+    keywords = solver_keywords(args, validate.L / per_l, iterations=iterations)
+    keywords.pop("iterations")
     model, solver, pipeline, dt = validate.build_plain(
-        per_l, args.depth, args.substeps, iterations, device, height=wall_top, gate=True
+        per_l, args.depth, args.substeps, iterations, device, height=wall_top, gate=True, **keywords
     )
     stepper = validate.Stepper(model, solver, pipeline, dt)
     L, d = validate.L, validate.L / per_l
@@ -76,6 +79,7 @@ def run_one(per_l: int, iterations: int, args, device) -> dict:
         "particles_outside": outside,
         "particles_through_walls": through,
         "substeps": args.substeps,
+        **solver_record(solver),
         # at the end
         "mean_abs_density_error": stats["mean_abs_density_error"],
         "max_compression": stats["max_compression"],
@@ -135,8 +139,7 @@ def main(argv=None):
     parser.add_argument("--depth", type=int, default=6, help="particle layers in y")
     parser.add_argument("--seconds", type=float, default=1.0)
     parser.add_argument("--collapse", type=float, default=0.3, help="largest compression that counts as collapsed")
-    parser.add_argument("--device", default=None)
-    parser.add_argument("--json", default=None)
+    add_solver_arguments(parser, step_flags=False)
     parser.add_argument("--plot", default=None)
     parser.add_argument("--inputs", default=None, help="plot this JSON instead of running")
     args = parser.parse_args(argv)

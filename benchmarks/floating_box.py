@@ -31,6 +31,7 @@ import newton
 from newton.examples.fluid.common import add_tank
 from newton.examples.fluid.progress import track
 
+from .frames import add_solver_arguments, solver_keywords, solver_record
 from .run_record import write_record
 
 POOL_HALF = 0.5  # inner half-width of the square pool [m]
@@ -74,9 +75,7 @@ def build(spacing: float, box_density: float, device):
 
 def run(spacing: float, box_density: float, args, device) -> dict:
     model = build(spacing, box_density, device)
-    solver = newton.solvers.SolverXPBD(
-        model, iterations=args.iterations, fluid_rest_distance=spacing, fluid_viscosity=args.viscosity
-    )
+    solver = newton.solvers.SolverXPBD(model, **solver_keywords(args, spacing))
     pipeline = newton.CollisionPipeline(model, soft_contact_gap=0.5 * spacing)
     contacts = pipeline.contacts()
     states = [model.state(), model.state()]
@@ -118,6 +117,7 @@ def run(spacing: float, box_density: float, args, device) -> dict:
         "draft_m": draft,
         "archimedes_draft_m": expected,
         "draft_relative_error": draft / expected - 1.0,
+        **solver_record(solver),
         "mean_abs_density_error": stats["mean_abs_density_error"],
         "mean_compression": stats["mean_compression"],
         "max_compression": stats["max_compression"],
@@ -129,13 +129,9 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--spacings", type=float, nargs="+", default=[0.1, 0.05])
     parser.add_argument("--densities", type=float, nargs="+", default=[250.0, 500.0, 750.0])
-    parser.add_argument("--substeps", type=int, default=8)
-    parser.add_argument("--iterations", type=int, default=2)
-    parser.add_argument("--viscosity", type=float, default=0.1)
     parser.add_argument("--seconds", type=float, default=2.5, help="simulated time [s]")
     parser.add_argument("--average", type=float, default=1.0, help="the last seconds the box height is averaged over")
-    parser.add_argument("--device", default=None)
-    parser.add_argument("--json", default=None)
+    add_solver_arguments(parser, defaults={"fluid_viscosity": 0.1})
     args = parser.parse_args(argv)
     device = wp.get_device(args.device)
     runs = []
@@ -155,7 +151,6 @@ def main(argv=None):
     result = {
         "substeps": args.substeps,
         "iterations": args.iterations,
-        "viscosity": args.viscosity,
         "seconds": args.seconds,
         "averaged_s": args.average,
         "box_half_extents_m": BOX_HALF,

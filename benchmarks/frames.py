@@ -65,26 +65,30 @@ def solver_flag(keyword: str) -> str:
     return "--" + _dest(keyword).replace("_", "-")
 
 
-def add_solver_arguments(parser, defaults: dict | None = None, substeps: int = 8, iterations: int = 2) -> None:
+def add_solver_arguments(
+    parser, defaults: dict | None = None, substeps: int = 8, iterations: int = 2, step_flags: bool = True
+) -> None:
     """Every solver keyword as a flag named after it (:func:`solver_flag`), so the names match in every benchmark.
 
     A flag left unset passes nothing: the solver's default applies. Besides them: ``--substeps``,
-    ``--iterations``, ``--smoothing-ratio`` (``fluid_smoothing_length`` over the scene's spacing),
-    ``--device`` and ``--json``.
+    ``--iterations`` (unless ``step_flags`` is off), ``--smoothing-ratio`` (``fluid_smoothing_length`` over
+    the scene's spacing), ``--device`` and ``--json``.
 
     Args:
         parser: The ``argparse.ArgumentParser`` to add them to.
         defaults: The benchmark's own defaults by keyword (for example ``{"fluid_cohesion": 1.0}``).
         substeps: Default substeps per 1/60 s frame.
         iterations: Default XPBD iterations per substep.
+        step_flags: Whether to add ``--substeps`` and ``--iterations`` (a sweep over them adds its own).
     """
     defaults = defaults or {}
     unknown = set(defaults) - set(SOLVER_KEYWORDS)
     if unknown:
         raise ValueError(f"defaults names {sorted(unknown)}, which are not solver keywords")
     group = parser.add_argument_group("solver", "SolverXPBD's keywords (unset: the solver's default)")
-    group.add_argument("--substeps", type=int, default=substeps, help="substeps per 1/60 s frame")
-    group.add_argument("--iterations", type=int, default=iterations, help="XPBD iterations per substep")
+    if step_flags:
+        group.add_argument("--substeps", type=int, default=substeps, help="substeps per 1/60 s frame")
+        group.add_argument("--iterations", type=int, default=iterations, help="XPBD iterations per substep")
     group.add_argument(
         "--smoothing-ratio",
         type=float,
@@ -107,7 +111,7 @@ def add_solver_arguments(parser, defaults: dict | None = None, substeps: int = 8
     parser.add_argument("--json", default=None)
 
 
-def solver_keywords(args, spacing: float, damping: bool = True) -> dict:
+def solver_keywords(args, spacing: float, damping: bool = True, iterations: int | None = None) -> dict:
     """``SolverXPBD`` keywords from :func:`add_solver_arguments`' flags: the ones set, and the scene's spacing.
 
     Args:
@@ -115,8 +119,9 @@ def solver_keywords(args, spacing: float, damping: bool = True) -> dict:
         spacing: The scene's particle spacing [m] (``fluid_rest_distance``).
         damping: Whether to pass ``fluid_nonaffine_damping`` (a benchmark that settles with its own damping first
             sets it later).
+        iterations: XPBD iterations per substep, for a sweep over them; default ``args.iterations``.
     """
-    keywords = {"iterations": args.iterations, "fluid_rest_distance": spacing}
+    keywords = {"iterations": args.iterations if iterations is None else iterations, "fluid_rest_distance": spacing}
     if args.smoothing_ratio is not None:
         keywords["fluid_smoothing_length"] = args.smoothing_ratio * spacing
     for name in SOLVER_KEYWORDS:

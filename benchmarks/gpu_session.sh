@@ -78,19 +78,19 @@ for what in "$@"; do
       # fixed counts against the tolerance modes at 8 substeps, one session (docs/images/speed_accuracy_tolerance.png)
       sa="python3 -W ignore -m benchmarks speed_accuracy --per-l 40 --depth 31 --sample-every 6 --substeps 8"
       $sa --iterations 1 2 3 4 6 8 --tolerances --json "$out/speed_accuracy_100k_fixed_8_substeps_${gpu}.json"
-      $sa --iterations --max-iterations 1 --subpasses 12 --tolerances 0.02 0.01 0.005 \
+      $sa --iterations --tolerance-iterations 1 --max-iterations 12 --tolerances 0.02 0.01 0.005 \
         --json "$out/speed_accuracy_100k_subpasses_i1_${gpu}.json"
-      $sa --iterations --max-iterations 1 --subpasses 16 --tolerances 0.0025 \
+      $sa --iterations --tolerance-iterations 1 --max-iterations 16 --tolerances 0.0025 \
         --json "$out/speed_accuracy_100k_subpasses_i1_tolerance_0.0025_${gpu}.json"
-      $sa --iterations --max-iterations 8 --tolerances 0.02 0.01 0.005 \
+      $sa --iterations --tolerance-iterations 8 --tolerances 0.02 0.01 0.005 \
         --json "$out/speed_accuracy_100k_iteration_tolerance_${gpu}.json"
-      $sa --iterations --max-iterations 2 --subpasses 4 --tolerances 0.02 0.01 0.005 \
+      $sa --iterations --tolerance-iterations 2 --max-iterations 4 --tolerances 0.02 0.01 0.005 \
         --json "$out/speed_accuracy_100k_subpasses_i2_${gpu}.json" ;;
     tolerance-i2)
       # two XPBD iterations with sub-passes against the fixed counts, one session
       sa="python3 -W ignore -m benchmarks speed_accuracy --per-l 40 --depth 31 --sample-every 6 --substeps 8"
       $sa --iterations 2 3 4 6 8 --tolerances --json "$out/speed_accuracy_100k_fixed_8_substeps_i2_session_${gpu}.json"
-      $sa --iterations --max-iterations 2 --subpasses 4 --tolerances 0.02 0.01 0.005 \
+      $sa --iterations --tolerance-iterations 2 --max-iterations 4 --tolerances 0.02 0.01 0.005 \
         --json "$out/speed_accuracy_100k_subpasses_i2_${gpu}.json" ;;
     surge)
       # the surge front at finer resolutions than the CPU runs of docs/archive/validation_notebook.md

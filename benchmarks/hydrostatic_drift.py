@@ -26,6 +26,7 @@ import newton
 from newton.examples.fluid.common import add_tank
 from newton.examples.fluid.progress import track
 
+from .frames import add_solver_arguments, solver_keywords, solver_record
 from .run_record import write_record
 
 D = 0.1  # spacing [m]
@@ -55,14 +56,6 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--width", type=int, default=6, help="particles across the column")
     parser.add_argument("--height", type=int, default=10, help="particles up the column")
-    parser.add_argument("--substeps", type=int, default=8)
-    parser.add_argument("--iterations", type=int, default=2)
-    parser.add_argument("--viscosity", type=float, default=0.05)
-    parser.add_argument("--cohesion", type=float, default=0.0)
-    parser.add_argument("--relaxation", type=float, default=None, help="fluid_relaxation (default: the solver's)")
-    parser.add_argument("--smoothing-ratio", type=float, default=1.8, help="smoothing length over the spacing")
-    parser.add_argument("--warm-start", type=float, default=0.0, help="fluid_warm_start")
-    parser.add_argument("--density-ramp", type=float, default=0.0, help="fluid_density_ramp")
     parser.add_argument(
         "--packing",
         choices=("cubic", "staggered"),
@@ -73,8 +66,7 @@ def main(argv=None):
     parser.add_argument("--jitter", type=float, default=0.0, help="random offset of the start positions [spacings]")
     parser.add_argument("--settle", type=float, default=3.0, help="seconds before the reference positions")
     parser.add_argument("--seconds", type=int, default=5, help="seconds of drift measured")
-    parser.add_argument("--device", default=None)
-    parser.add_argument("--json", default=None)
+    add_solver_arguments(parser, defaults={"fluid_viscosity": 0.05})
     args = parser.parse_args(argv)
 
     wp.config.quiet = True
@@ -93,17 +85,7 @@ def main(argv=None):
     add_tank(builder, 0.5 * w, 0.5 * w, 2.0 * args.height * D, 0.05, center=(0.5 * w, 0.5 * w))
     model = builder.finalize(device=device)
     model.soft_contact_mu = 0.0
-    solver = newton.solvers.SolverXPBD(
-        model,
-        iterations=args.iterations,
-        fluid_rest_distance=D,
-        fluid_viscosity=args.viscosity,
-        fluid_cohesion=args.cohesion,
-        fluid_relaxation=args.relaxation,
-        fluid_smoothing_length=args.smoothing_ratio * D,
-        fluid_warm_start=args.warm_start,
-        fluid_density_ramp=args.density_ramp,
-    )
+    solver = newton.solvers.SolverXPBD(model, **solver_keywords(args, D))
     # contacts out to one diameter from the surface, so the particles see the walls' density
     pipeline = newton.CollisionPipeline(model, soft_contact_gap=0.5 * D)
     contacts = pipeline.contacts()
@@ -177,13 +159,7 @@ def main(argv=None):
         "jitter_spacings": args.jitter,
         "spacing_m": D,
         "substeps": args.substeps,
-        "iterations": args.iterations,
-        "viscosity": args.viscosity,
-        "cohesion": args.cohesion,
-        "relaxation": args.relaxation,
-        "warm_start": args.warm_start,
-        "fluid_density_ramp": args.density_ramp,
-        "smoothing_over_spacing": args.smoothing_ratio,
+        **solver_record(solver),
         "settle_s": args.settle,
         "start_max_compression": start["max_compression"],
         "settle_max_speed_m_s": settle_max_speed,

@@ -30,6 +30,7 @@ import newton
 from newton.examples.fluid.common import add_closed_box
 from newton.examples.fluid.progress import track
 
+from .frames import add_solver_arguments, solver_keywords, solver_record
 from .run_record import write_record
 
 SPACING = 0.1  # rest spacing [m]
@@ -59,12 +60,7 @@ def run(args, device) -> dict:
     add_closed_box(builder, edge, args.height, thickness=2.0 * d)
     model = builder.finalize(device=device)
     model.soft_contact_mu = 0.0
-    solver = newton.solvers.SolverXPBD(
-        model,
-        iterations=args.iterations,
-        fluid_rest_distance=d,
-        fluid_continuous_collision=args.continuous_collision,
-    )
+    solver = newton.solvers.SolverXPBD(model, **solver_keywords(args, d))
     pipeline = newton.CollisionPipeline(model, soft_contact_max=4 * model.particle_count, soft_contact_gap=0.5 * d)
     contacts = pipeline.contacts()
     s0, s1 = model.state(), model.state()
@@ -95,9 +91,8 @@ def run(args, device) -> dict:
         "packed_fraction": args.fraction,
         "box_m": [edge, edge, args.height],
         "substeps": args.substeps,
-        "iterations": args.iterations,
         "seconds": args.seconds,
-        "fluid_continuous_collision": args.continuous_collision,
+        **solver_record(solver),
         "left_tank": left,
         "settled_level_m": level,
         "highest_m": highest,
@@ -117,17 +112,8 @@ def main(argv=None):
     parser.add_argument("--block", type=int, default=14, help="particles along each side of the block")
     parser.add_argument("--layers", type=int, default=10)
     parser.add_argument("--height", type=float, default=3.0, help="inner height of the closed box [m]")
-    parser.add_argument("--substeps", type=int, default=8)
-    parser.add_argument("--iterations", type=int, default=2)
     parser.add_argument("--seconds", type=float, default=2.0)
-    parser.add_argument(
-        "--continuous-collision",
-        action=argparse.BooleanOptionalAction,
-        default=True,
-        help="fluid_continuous_collision",
-    )
-    parser.add_argument("--device", default=None)
-    parser.add_argument("--json", default=None)
+    add_solver_arguments(parser)
     args = parser.parse_args(argv)
     wp.config.quiet = True
     device = wp.get_device(args.device)

@@ -40,6 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .frames import add_solver_arguments, solver_keywords, solver_record
 from .run_record import write_record
 
 GL_DISPATCH = "/lib/x86_64-linux-gnu/libGLdispatch.so.0"
@@ -111,8 +112,9 @@ def run_xpbd(args, L: float, times: np.ndarray) -> dict:
     device = wp.get_device(args.device)
     d = L / args.per_l
     gap = args.xpbd_wall_gap * d
+    keywords = solver_keywords(args, d)
     model, solver, pipeline, dt = validate.build_plain(
-        args.per_l, args.depth, args.substeps, args.iterations, device, wall_gap=gap
+        args.per_l, args.depth, args.substeps, keywords.pop("iterations"), device, wall_gap=gap, **keywords
     )
     # with a gap the fluid's boundary planes are the walls, as for DFSPH (resting centres half a spacing inside)
     rec = Recorder(L, d, 1000.0 * d**3, solver.fluid_smoothing_length, args.depth * d, wall_shift=gap)
@@ -130,7 +132,7 @@ def run_xpbd(args, L: float, times: np.ndarray) -> dict:
         "device": device.name if device.is_cuda else "cpu",
         "particles": int(model.particle_count),
         "substeps": args.substeps,
-        "iterations": args.iterations,
+        **solver_record(solver),
         "wall_gap_spacings": args.xpbd_wall_gap,
         "steps": stepper.steps,
         "wall_s": wall,
@@ -313,9 +315,6 @@ def main(argv=None):
     parser.add_argument("--per-l", type=int, default=20, help="particles across L")
     parser.add_argument("--depth", type=int, default=16, help="particle layers in y")
     parser.add_argument("--t-end", type=float, default=1.5, help="simulated time [s]")
-    parser.add_argument("--substeps", type=int, default=8, help="ours, per 60 Hz frame")
-    parser.add_argument("--iterations", type=int, default=2, help="ours")
-    parser.add_argument("--device", default="cpu", help="ours")
     parser.add_argument(
         "--xpbd-wall-gap",
         type=float,
@@ -328,8 +327,10 @@ def main(argv=None):
     parser.add_argument(
         "--workdir", default=str(Path.home() / ".cache" / "newton-fluid" / "dfsph"), help="scene + volume-map cache"
     )
-    parser.add_argument("--json", default=None)
     parser.add_argument("--plot", default=None)
+    # ours: substeps, iterations and every solver keyword, on --device (the CPU unless given)
+    add_solver_arguments(parser)
+    parser.set_defaults(device="cpu")
     parser.add_argument("--gl-dispatch", default=GL_DISPATCH, help="libGLdispatch to preload for pysplishsplash")
     args = parser.parse_args(argv)
     preload = os.environ.get("LD_PRELOAD", "")

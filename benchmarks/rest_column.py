@@ -5,8 +5,8 @@
 
 A lattice of ``--n`` x ``--n`` x ``--layers`` fluid particles (spacing 0.05 m, 1000 kg/m^3) fills the
 floor of a closed box of frictionless walls 1.5 times the column's height, at 60 Hz with ``--substeps``
-x ``--iterations`` and the solver's default keywords unless ``--viscosity``, ``--density-ramp``,
-``--relaxation`` or ``--nonaffine-damping`` are given. After ``--settle`` seconds it measures for ``--measure`` seconds: the RMS and largest particle
+x ``--iterations`` and the solver's default keywords unless their flags are given (``--viscosity``,
+``--density-ramp``, ``--relaxation``, ``--nonaffine-damping``, ...: every keyword, named after it). After ``--settle`` seconds it measures for ``--measure`` seconds: the RMS and largest particle
 speed (sampled every frame), the mean and largest displacement [spacings], the height span of the top
 layer [spacings], the fluid's own density error and the total energy per unit mass (kinetic plus
 g z) at the start and end of the measurement. The targets of issue #23: RMS below 0.005 m/s, max below
@@ -26,10 +26,10 @@ import numpy as np
 import warp as wp
 
 import newton
-from newton._src.solvers.xpbd.fluid.config import DEFAULT_NONAFFINE_DAMPING
 from newton.examples.fluid.common import add_closed_box, add_water_lattice
 from newton.examples.fluid.progress import track
 
+from .frames import add_solver_arguments, solver_keywords, solver_record
 from .run_record import write_record
 
 SPACING = 0.05  # [m]
@@ -56,15 +56,7 @@ def energy(state) -> float:
 def run(args, device) -> dict:
     d = SPACING
     model = build(args.n, args.layers, device)
-    solver = newton.solvers.SolverXPBD(
-        model,
-        iterations=args.iterations,
-        fluid_rest_distance=d,
-        fluid_viscosity=args.viscosity,
-        fluid_density_ramp=args.density_ramp,
-        fluid_relaxation=args.relaxation,
-        fluid_nonaffine_damping=args.nonaffine_damping,
-    )
+    solver = newton.solvers.SolverXPBD(model, **solver_keywords(args, d))
     pipeline = newton.CollisionPipeline(model, soft_contact_max=2 * model.particle_count, soft_contact_gap=0.5 * d)
     contacts = pipeline.contacts()
     states = [model.state(), model.state()]
@@ -99,11 +91,7 @@ def run(args, device) -> dict:
         "n": args.n,
         "layers": args.layers,
         "substeps": args.substeps,
-        "iterations": args.iterations,
-        "viscosity": args.viscosity,
-        "density_ramp": args.density_ramp,
-        "relaxation": solver.fluid_relaxation,
-        "nonaffine_damping": args.nonaffine_damping,
+        **solver_record(solver),
         "settle_s": args.settle,
         "measure_s": args.measure,
         "rms_speed_m_s": float(np.mean(rms)),
@@ -123,18 +111,9 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--n", type=int, default=12, help="particles along each side of the column")
     parser.add_argument("--layers", type=int, default=24)
-    parser.add_argument("--substeps", type=int, default=8)
-    parser.add_argument("--iterations", type=int, default=2)
-    parser.add_argument("--viscosity", type=float, default=0.0)
-    parser.add_argument("--density-ramp", type=float, default=0.0)
-    parser.add_argument("--relaxation", type=float, default=None, help="fluid_relaxation (default: the solver's)")
-    parser.add_argument(
-        "--nonaffine-damping", type=float, default=DEFAULT_NONAFFINE_DAMPING, help="fluid_nonaffine_damping"
-    )
     parser.add_argument("--settle", type=float, default=2.0, help="[s]")
     parser.add_argument("--measure", type=float, default=3.0, help="[s]")
-    parser.add_argument("--device", default=None)
-    parser.add_argument("--json", default=None)
+    add_solver_arguments(parser)
     args = parser.parse_args(argv)
     wp.config.quiet = True
     device = wp.get_device(args.device)

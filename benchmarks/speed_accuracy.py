@@ -10,9 +10,10 @@ the far wall, plunging wave, sloshing). Every run is timed over all its frames b
 (kernel compilation; on CUDA each frame is one replayed graph) and its density error is measured
 every ``--sample-every`` frames with the independent estimator of ``reference_dfsph.py``
 (poly6, ghost-lattice walls). Fixed counts: ``--iterations`` x ``--substeps``; tolerance mode: up
-to ``--max-iterations`` XPBD iterations whose density passes stop once the mean compression is
-within each of ``--tolerances`` (``fluid_density_tolerance``); with ``--subpasses N``, each XPBD
-iteration instead runs up to N density passes (``fluid_max_iterations``) that stop there.
+to ``--tolerance-iterations`` XPBD iterations whose density passes stop once the mean compression is
+within each of ``--tolerances`` (``fluid_density_tolerance``); with ``--max-iterations N``
+(``fluid_max_iterations``) above 1, each XPBD iteration instead runs up to N density passes that stop
+there. Every other solver keyword is a flag named after it.
 
 Prints a table and writes JSON; ``--plot PNG`` draws the chart from one or more JSON files
 (``--inputs``, default: this run) with SPlisHSPlasH's points from ``reference_dfsph.py`` JSON
@@ -37,6 +38,7 @@ import numpy as np
 
 from newton.examples.fluid.progress import track
 
+from .frames import add_solver_arguments, solver_keywords, solver_record
 from .run_record import write_record
 
 
@@ -47,17 +49,12 @@ def run_one(args, device, substeps: int, iterations: int, tolerance: float, pass
     from . import validate_dam_break as validate  # noqa: PLC0415
 
     L = validate.L
-    model, solver, pipeline, dt = validate.build_plain(
-        args.per_l,
-        args.depth,
-        substeps,
-        iterations,
-        device,
-        fluid_density_tolerance=tolerance,
-        fluid_max_iterations=passes,
-        fluid_warm_start=args.warm_start,
-    )
     d = L / args.per_l
+    # the keywords set by flags, then the run's own point of the sweep
+    keywords = solver_keywords(args, d, iterations=iterations)
+    keywords.update(fluid_density_tolerance=tolerance, fluid_max_iterations=passes)
+    keywords.pop("iterations")
+    model, solver, pipeline, dt = validate.build_plain(args.per_l, args.depth, substeps, iterations, device, **keywords)
     rec = reference.Recorder(L, d, 1000.0 * d**3, solver.fluid_smoothing_length, args.depth * d)
     states = [model.state(), model.state()]
     contacts = pipeline.contacts()
@@ -95,10 +92,7 @@ def run_one(args, device, substeps: int, iterations: int, tolerance: float, pass
     return {
         "mode": mode,
         "substeps": substeps,
-        "iterations": iterations,
-        "fluid_max_iterations": passes,
-        "fluid_density_tolerance": tolerance,
-        "fluid_warm_start": args.warm_start,
+        **solver_record(solver),
         # the passes that corrected, over every substep of the run
         "density_passes_per_substep": (
             stats["density_subiterations"] / (frames * substeps) if tolerance > 0.0 else iterations
@@ -127,12 +121,10 @@ def sweep(args) -> dict:
     wp.config.quiet = True
     device = wp.get_device(args.device)
     configs = [(s, i, 0.0) for s in args.substeps for i in args.iterations]
-    if args.subpasses > 1:
-        # the tolerance on density passes within each XPBD iteration (upstream's per-iteration work is
-        # not repeated for a pass)
-        configs += [(s, args.max_iterations, tol, args.subpasses) for s in args.substeps for tol in args.tolerances]
-    else:
-        configs += [(s, args.max_iterations, tol) for s in args.substeps for tol in args.tolerances]
+    # with --max-iterations above 1 the tolerance stops density passes within each XPBD iteration
+    # (upstream's per-iteration work is not repeated for a pass), else the XPBD iterations themselves
+    passes = args.max_iterations or 1
+    configs += [(s, args.tolerance_iterations, tol, passes) for s in args.substeps for tol in args.tolerances]
     runs = []
     print(
         f"{'mode':<10}{'substeps':>9}{'iters':>6}{'tol':>8}{'passes':>8}{'ms/frame':>10}"
@@ -277,18 +269,19 @@ def main(argv=None):
     parser.add_argument(
         "--iterations", type=int, nargs="*", default=[1, 2, 4, 8], help="fixed counts (none: only the tolerance runs)"
     )
-    parser.add_argument("--tolerances", type=float, nargs="*", default=[0.01, 0.005, 0.0025, 0.001])
-    parser.add_argument("--max-iterations", type=int, default=8, help="XPBD iterations of the tolerance mode")
     parser.add_argument(
-        "--subpasses",
-        type=int,
-        default=1,
-        help="tolerance mode with up to this many density passes per XPBD iteration (fluid_max_iterations); "
-        "1: the tolerance ends the substep's density passes at the XPBD iteration level",
+        "--tolerances",
+        type=float,
+        nargs="*",
+        default=[0.01, 0.005, 0.0025, 0.001],
+        help="runs in the tolerance mode, one per fluid_density_tolerance",
     )
-    parser.add_argument("--warm-start", type=float, default=0.0, help="fluid_warm_start of every run")
-    parser.add_argument("--device", default=None)
-    parser.add_argument("--json", default=None)
+    parser.add_argument(
+        "--tolerance-iterations", type=int, default=8, help="XPBD iterations of the tolerance runs (at most)"
+    )
+    # every other solver keyword; --max-iterations above 1 makes the tolerance runs stop density passes
+    # within each XPBD iteration, and --density-tolerance is the sweep's (the runs set it)
+    add_solver_arguments(parser, step_flags=False)
     parser.add_argument("--plot", default=None, help="draw the chart here (from --inputs, or this run)")
     parser.add_argument("--inputs", nargs="*", default=None, help="sweep JSON files to plot instead of running")
     parser.add_argument("--reference", default=None, help="reference_dfsph.py JSON (SPlisHSPlasH points)")

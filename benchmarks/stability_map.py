@@ -33,6 +33,7 @@ import newton
 from newton.examples.fluid.common import add_closed_tank
 from newton.examples.fluid.progress import track
 
+from .frames import add_solver_arguments, solver_keywords
 from .run_record import write_record
 
 FLUID = int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID)
@@ -67,14 +68,7 @@ def build(args, speed: float, device):
 def run_one(args, device, substeps: int, iterations: int, speed: float) -> dict:
     d = args.spacing
     model, tank = build(args, speed, device)
-    solver = newton.solvers.SolverXPBD(
-        model,
-        iterations=iterations,
-        fluid_rest_distance=d,
-        fluid_viscosity=args.viscosity,
-        fluid_max_displacement=args.max_displacement,
-        fluid_continuous_collision=args.continuous_collision,
-    )
+    solver = newton.solvers.SolverXPBD(model, **solver_keywords(args, d, iterations=iterations))
     pipeline = newton.CollisionPipeline(model, soft_contact_max=2 * model.particle_count, soft_contact_gap=0.5 * d)
     contacts = pipeline.contacts()
     s0, s1 = model.state(), model.state()
@@ -200,21 +194,10 @@ def main(argv=None):
     parser.add_argument("--block", type=int, default=8, help="particles per edge of the thrown block")
     parser.add_argument("--spacing", type=float, default=0.05, help="rest distance [m]")
     parser.add_argument("--seconds", type=float, default=1.5)
-    parser.add_argument("--viscosity", type=float, default=0.05)
-    parser.add_argument(
-        "--max-displacement", type=float, default=float("inf"), help="fluid_max_displacement [rest distances]"
-    )
-    parser.add_argument(
-        "--continuous-collision",
-        action=argparse.BooleanOptionalAction,
-        default=True,
-        help="fluid_continuous_collision (paths kept out of the tank's walls)",
-    )
     parser.add_argument("--substeps", type=int, nargs="+", default=[1, 2, 4, 8, 16, 32])
     parser.add_argument("--iterations", type=int, nargs="+", default=[1, 2, 4, 8])
     parser.add_argument("--speeds", type=float, nargs="+", default=[1.0, 4.0, 16.0, 64.0])
-    parser.add_argument("--device", default=None)
-    parser.add_argument("--json", default=None)
+    add_solver_arguments(parser, defaults={"fluid_viscosity": 0.05}, step_flags=False)
     parser.add_argument("--plot", default=None)
     parser.add_argument("--inputs", default=None, help="plot this JSON instead of running")
     args = parser.parse_args(argv)
@@ -245,9 +228,8 @@ def main(argv=None):
             "particles": args.block**3,
             "spacing_m": args.spacing,
             "seconds": args.seconds,
-            "viscosity": args.viscosity,
-            "fluid_max_displacement": args.max_displacement,
-            "fluid_continuous_collision": args.continuous_collision,
+            # the keywords set (the rest at the solver's defaults); each row has its iterations
+            **{k: v for k, v in solver_keywords(args, args.spacing, iterations=0).items() if k != "iterations"},
             "wall_s": time.perf_counter() - t0,
         }
         result = write_record("stability_map", device, result, args.json, rows=runs)

@@ -24,6 +24,7 @@ import warp as wp
 
 from newton.examples.fluid.progress import track
 
+from .frames import add_solver_arguments, solver_keywords, solver_record
 from .run_record import write_record
 
 
@@ -31,29 +32,17 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--per-l", type=int, default=20, help="particles across L")
     parser.add_argument("--depth", type=int, default=16, help="particle layers in y")
-    parser.add_argument("--substeps", type=int, default=8)
-    parser.add_argument("--iterations", type=int, default=1, help="XPBD iterations")
-    parser.add_argument("--max-iterations", type=int, default=8, help="fluid_max_iterations")
-    parser.add_argument("--density-tolerance", type=float, default=0.0025, help="fluid_density_tolerance")
-    parser.add_argument("--warm-start", type=float, default=0.0, help="fluid_warm_start")
     parser.add_argument("--seconds", type=float, default=5.0)
     parser.add_argument("--every", type=int, default=15, help="frames per row")
-    parser.add_argument("--device", default=None)
-    parser.add_argument("--json", default=None)
+    add_solver_arguments(parser, defaults={"fluid_max_iterations": 8, "fluid_density_tolerance": 0.0025}, iterations=1)
     args = parser.parse_args(argv)
     from . import validate_dam_break as validate  # noqa: PLC0415
 
     wp.config.quiet = True
     device = wp.get_device(args.device)
+    keywords = solver_keywords(args, validate.L / args.per_l)
     model, solver, pipeline, dt = validate.build_plain(
-        args.per_l,
-        args.depth,
-        args.substeps,
-        args.iterations,
-        device,
-        fluid_density_tolerance=args.density_tolerance,
-        fluid_max_iterations=args.max_iterations,
-        fluid_warm_start=args.warm_start,
+        args.per_l, args.depth, args.substeps, keywords.pop("iterations"), device, **keywords
     )
     stepper = validate.Stepper(model, solver, pipeline, dt)
     rows = []
@@ -87,10 +76,7 @@ def main(argv=None):
         "per_L": args.per_l,
         "depth_layers": args.depth,
         "substeps": args.substeps,
-        "iterations": args.iterations,
-        "fluid_max_iterations": args.max_iterations,
-        "fluid_density_tolerance": args.density_tolerance,
-        "fluid_warm_start": args.warm_start,
+        **solver_record(solver),
     }
     return write_record("tolerance_demand", device, result, args.json, rows=rows)
 

@@ -33,10 +33,10 @@ import numpy as np
 import warp as wp
 
 import newton
-from newton._src.solvers.xpbd.fluid.config import DEFAULT_NONAFFINE_DAMPING
 from newton.examples.fluid.common import add_water_lattice
 from newton.examples.fluid.progress import track
 
+from .frames import add_solver_arguments, solver_keywords, solver_record
 from .run_record import write_record
 
 DATA = Path(__file__).resolve().parent / "data" / "dam_break_koshizuka_oka_1996.json"
@@ -65,10 +65,11 @@ def build(
 ):
     """The tank and column of Koshizuka & Oka at ``per_l`` particles across L: (model, solver, pipeline, dt).
 
-    ``args`` supplies ``substeps``, ``iterations``, ``cohesion``, ``viscosity``, ``speed_clamp`` and
-    ``floor_friction``; ``solver_kwargs`` go to the solver. The column's back face is at x = 0 and its
-    bottom at z = 0; the floor and the walls are ``wall_gap`` [m] beyond the column's faces (and the
-    far wall that far beyond 5L). With ``gate``, a frictionless wall stands at the column's front face.
+    ``args`` supplies ``substeps``, ``speed_clamp`` and ``floor_friction``; ``solver_kwargs`` (``iterations``
+    and ``fluid_*`` keywords) go to the solver, at its defaults otherwise. The column's back face is at
+    x = 0 and its bottom at z = 0; the floor and the walls are ``wall_gap`` [m] beyond the column's faces
+    (and the far wall that far beyond 5L). With ``gate``, a frictionless wall stands at the column's
+    front face.
     """
     d = L / per_l
     builder = newton.ModelBuilder()
@@ -102,16 +103,7 @@ def build(
     dt = 1.0 / (60.0 * args.substeps)
     if args.speed_clamp > 0.0:
         model.particle_max_velocity = args.speed_clamp * 0.5 * d / dt
-    solver = newton.solvers.SolverXPBD(
-        model,
-        iterations=args.iterations,
-        fluid_rest_distance=d,
-        fluid_cohesion=args.cohesion,
-        fluid_viscosity=args.viscosity,
-        fluid_relaxation=getattr(args, "relaxation", None),
-        fluid_nonaffine_damping=getattr(args, "nonaffine_damping", DEFAULT_NONAFFINE_DAMPING),
-        **solver_kwargs,
-    )
+    solver = newton.solvers.SolverXPBD(model, **{"fluid_rest_distance": d, **solver_kwargs})
     pipeline = newton.CollisionPipeline(model, soft_contact_max=model.particle_count, soft_contact_gap=0.5 * d)
     return model, solver, pipeline, dt
 
@@ -119,16 +111,14 @@ def build(
 def build_plain(
     per_l: int, depth_layers: int, substeps: int, iterations: int, device, height: float = 4.0 * L, **kwargs
 ):
-    """The column in a tank ``height`` tall (default 4L) with nothing but the density solve: no cohesion,
-    viscosity, speed clamp or friction.
+    """The column in a tank ``height`` tall (default 4L) with nothing but the density solve at the solver's
+    defaults (no cohesion, viscosity, speed clamp or friction) unless ``kwargs`` set keywords.
 
     The scene of the speed-accuracy sweep, the reference comparison and the column-depth map;
     ``kwargs`` go to :func:`build`.
     """
-    cfg = argparse.Namespace(
-        substeps=substeps, iterations=iterations, cohesion=0.0, viscosity=0.0, speed_clamp=0.0, floor_friction=0.0
-    )
-    return build(per_l, depth_layers, cfg, device, height=height, **kwargs)
+    cfg = argparse.Namespace(substeps=substeps, speed_clamp=0.0, floor_friction=0.0)
+    return build(per_l, depth_layers, cfg, device, height=height, iterations=iterations, **kwargs)
 
 
 class Stepper:
@@ -154,10 +144,7 @@ class Stepper:
 
 def run(per_l: int, args, points: np.ndarray, device) -> dict:
     d = L / per_l
-    tolerance = getattr(args, "density_tolerance", 0.0)
-    kwargs = {}
-    if tolerance > 0.0:
-        kwargs = {"fluid_density_tolerance": tolerance, "fluid_max_iterations": args.max_iterations}
+    kwargs = solver_keywords(args, d)
     model, solver, pipeline, dt = build(per_l, args.depth, args, device, **kwargs)
     stepper = Stepper(model, solver, pipeline, dt)
     if args.settle > 0.0:
@@ -185,6 +172,7 @@ def run(per_l: int, args, points: np.ndarray, device) -> dict:
         "max_compression": stats["max_compression"],
         # density passes that corrected per substep after the release (tolerance mode)
         "density_passes_per_substep": stats["density_subiterations"] / max(stepper.steps, 1),
+        **solver_record(solver),
     }
 
 
@@ -192,29 +180,16 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--resolutions", type=int, nargs="+", default=[20, 30, 40], help="particles across L")
     parser.add_argument("--depth", type=int, default=6, help="particle layers in y")
-    parser.add_argument("--substeps", type=int, default=8)
-    parser.add_argument("--iterations", type=int, default=2)
-    parser.add_argument("--cohesion", type=float, default=0.0)
-    parser.add_argument("--viscosity", type=float, default=0.0)
-    parser.add_argument("--relaxation", type=float, default=None, help="fluid_relaxation (default: the solver's)")
-    parser.add_argument(
-        "--nonaffine-damping", type=float, default=DEFAULT_NONAFFINE_DAMPING, help="fluid_nonaffine_damping"
-    )
     parser.add_argument("--speed-clamp", type=float, default=0.0, help="max displacement per substep [radii]; 0: off")
     parser.add_argument("--floor-friction", type=float, default=0.0, help="Coulomb friction of the floor (walls: 0)")
-    parser.add_argument(
-        "--density-tolerance", type=float, default=0.0, help="fluid_density_tolerance (0: fixed iterations)"
-    )
-    parser.add_argument("--max-iterations", type=int, default=8, help="fluid_max_iterations with --density-tolerance")
     parser.add_argument(
         "--settle",
         type=float,
         default=0.0,
         help="settle the column behind a gate this long first [s]; 0: lattice start",
     )
-    parser.add_argument("--device", default=None)
+    add_solver_arguments(parser)
     parser.add_argument("--data", default=str(DATA))
-    parser.add_argument("--json", default=None)
     args = parser.parse_args(argv)
 
     data = json.loads(Path(args.data).read_text())
@@ -238,14 +213,9 @@ def main(argv=None):
         "L_m": L,
         "depth_layers": args.depth,
         "substeps": args.substeps,
-        "iterations": args.iterations,
-        "cohesion": args.cohesion,
-        "viscosity": args.viscosity,
         "speed_clamp_radii_per_substep": args.speed_clamp,
         "floor_friction": args.floor_friction,
         "settle_s": args.settle,
-        "fluid_density_tolerance": args.density_tolerance,
-        "fluid_max_iterations": args.max_iterations if args.density_tolerance > 0.0 else 1,
     }
     return write_record("validate_dam_break", device, result, args.json, rows=runs)
 

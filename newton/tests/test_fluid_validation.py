@@ -48,18 +48,13 @@ def load_benchmark(path=BENCHMARK):
         sys.path.remove(root)
 
 
-def surge_args(iterations: int) -> argparse.Namespace:
+def surge_args(bench, iterations: int) -> argparse.Namespace:
     """``validate_dam_break.run``'s settings: 4 layers deep, 8 substeps, no cohesion, viscosity, clamp or friction."""
-    return argparse.Namespace(
-        depth=4,
-        substeps=8,
-        iterations=iterations,
-        cohesion=0.0,
-        viscosity=0.0,
-        speed_clamp=0.0,
-        floor_friction=0.0,
-        settle=0.0,
-    )
+    parser = argparse.ArgumentParser()
+    bench.add_solver_arguments(parser)  # the solver's keywords as the benchmark's flags, unset: its defaults
+    args = parser.parse_args(["--substeps", "8", "--iterations", str(iterations)])
+    args.depth, args.speed_clamp, args.floor_friction, args.settle = 4, 0.0, 0.0, 0.0
+    return args
 
 
 def test_surge_front_matches_experiment(test, device):
@@ -68,7 +63,7 @@ def test_surge_front_matches_experiment(test, device):
     bench = load_benchmark()
     data = json.loads(bench.DATA.read_text())
     points = np.asarray(data["points"])
-    args = surge_args(iterations=2)
+    args = surge_args(bench, iterations=2)
     # 40 layers for 2 iterations: g H / c^2 = 5.8 % (c = 2 x spacing / substep), beyond the 3 % the
     # solve holds, so the collapse compresses the bottom past 10 % in some substeps, and the run says so
     with test.assertWarnsRegex(RuntimeWarning, "past 10 % compression"):
@@ -91,7 +86,7 @@ def test_converged_surge_front_within_bound(test, device):
         test.skipTest("benchmarks/ is part of the source checkout, not of the installed wheel")
     bench = load_benchmark()
     points = np.asarray(json.loads(bench.DATA.read_text())["points"])
-    args = surge_args(iterations=4)
+    args = surge_args(bench, iterations=4)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         result = bench.run(20, args, points, device)
