@@ -41,9 +41,8 @@ def run_one(per_l: int, iterations: int, args, device) -> dict:
     # walls 2.5L tall, as validate_dam_break.py's own runs
     wall_top = 2.5 * validate.L
     keywords = solver_keywords(args, validate.L / per_l, iterations=iterations)
-    keywords.pop("iterations")
     model, solver, pipeline, dt = validate.build_plain(
-        per_l, args.depth, args.substeps, iterations, device, height=wall_top, gate=True, **keywords
+        per_l, args.depth, args.substeps, device, height=wall_top, gate=True, **keywords
     )
     stepper = validate.Stepper(model, solver, pipeline, dt)
     L, d = validate.L, validate.L / per_l

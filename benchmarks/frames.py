@@ -17,8 +17,8 @@ class Frames:
 
     Args:
         solver: The solver.
-        pipeline: The collision pipeline (``collide`` every substep).
-        contacts: Its contacts.
+        pipeline: The collision pipeline (``collide`` every substep), or ``None`` for a scene without contacts.
+        contacts: Its contacts (``None`` without a pipeline).
         states: Two states; ``states[0]`` holds the current one after every call.
         substeps: Substeps per frame.
         device: The device; on CUDA with an even substep count (the states end where they started) the
@@ -34,7 +34,8 @@ class Frames:
     def _substeps(self) -> None:
         s = self.states
         for _ in range(self.substeps):
-            self.pipeline.collide(s[0], self.contacts)
+            if self.pipeline is not None:
+                self.pipeline.collide(s[0], self.contacts)
             self.solver.step(s[0], s[1], None, self.contacts, self.dt)
             s[0], s[1] = s[1], s[0]
 

@@ -112,9 +112,8 @@ def run_xpbd(args, L: float, times: np.ndarray) -> dict:
     device = wp.get_device(args.device)
     d = L / args.per_l
     gap = args.xpbd_wall_gap * d
-    keywords = solver_keywords(args, d)
     model, solver, pipeline, dt = validate.build_plain(
-        args.per_l, args.depth, args.substeps, keywords.pop("iterations"), device, wall_gap=gap, **keywords
+        args.per_l, args.depth, args.substeps, device, wall_gap=gap, **solver_keywords(args, d)
     )
     # with a gap the fluid's boundary planes are the walls, as for DFSPH (resting centres half a spacing inside)
     rec = Recorder(L, d, 1000.0 * d**3, solver.fluid_smoothing_length, args.depth * d, wall_shift=gap)

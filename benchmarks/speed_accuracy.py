@@ -57,8 +57,7 @@ def run_one(args, device, substeps: int, iterations: int, tolerance: float, pass
     # the keywords set by flags, then the run's own point of the sweep
     keywords = solver_keywords(args, d, iterations=iterations)
     keywords.update(fluid_density_tolerance=tolerance, fluid_max_iterations=passes)
-    keywords.pop("iterations")
-    model, solver, pipeline, dt = validate.build_plain(args.per_l, args.depth, substeps, iterations, device, **keywords)
+    model, solver, pipeline, dt = validate.build_plain(args.per_l, args.depth, substeps, device, **keywords)
     rec = reference.Recorder(L, d, 1000.0 * d**3, solver.fluid_smoothing_length, args.depth * d)
     states = [model.state(), model.state()]
     contacts = pipeline.contacts()

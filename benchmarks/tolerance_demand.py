@@ -40,9 +40,8 @@ def main(argv=None):
 
     wp.config.quiet = True
     device = wp.get_device(args.device)
-    keywords = solver_keywords(args, validate.L / args.per_l)
     model, solver, pipeline, dt = validate.build_plain(
-        args.per_l, args.depth, args.substeps, keywords.pop("iterations"), device, **keywords
+        args.per_l, args.depth, args.substeps, device, **solver_keywords(args, validate.L / args.per_l)
     )
     stepper = validate.Stepper(model, solver, pipeline, dt)
     rows = []

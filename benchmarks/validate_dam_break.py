@@ -108,17 +108,16 @@ def build(
     return model, solver, pipeline, dt
 
 
-def build_plain(
-    per_l: int, depth_layers: int, substeps: int, iterations: int, device, height: float = 4.0 * L, **kwargs
-):
+def build_plain(per_l: int, depth_layers: int, substeps: int, device, height: float = 4.0 * L, **kwargs):
     """The column in a tank ``height`` tall (default 4L) with nothing but the density solve at the solver's
     defaults (no cohesion, viscosity, speed clamp or friction) unless ``kwargs`` set keywords.
 
     The scene of the speed-accuracy sweep, the reference comparison and the column-depth map;
-    ``kwargs`` go to :func:`build`.
+    ``kwargs`` (``iterations``, ``fluid_*``: :func:`~.frames.solver_keywords`; ``gate``, ``wall_gap``) go
+    to :func:`build`.
     """
     cfg = argparse.Namespace(substeps=substeps, speed_clamp=0.0, floor_friction=0.0)
-    return build(per_l, depth_layers, cfg, device, height=height, iterations=iterations, **kwargs)
+    return build(per_l, depth_layers, cfg, device, height=height, **kwargs)
 
 
 class Stepper:
