@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/archive/performance_notebook.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|collision|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|exact|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|collision|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|exact|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
 set -u
 out=${1:?output folder}; shift
 export PYTHONUNBUFFERED=1
@@ -74,6 +74,15 @@ for what in "$@"; do
       # the standing wave (about 100k) and Torricelli's jet (about 150k) over substeps x iterations and modes
       python3 -W ignore -m benchmarks accuracy_chart --size large --device cuda:0 --json "$out/accuracy_chart_${gpu}.json" \
         --plot "$out/accuracy_chart_${gpu}.png" 2>&1 | grep -v '^Module' ;;
+    jet)
+      # Torricelli's jet without the non-affine damping at 32 and 64 substeps, and at eight times the particles
+      # (docs/validation.rst, "Exact answers")
+      t="python3 -W ignore -m benchmarks torricelli --device cuda:0 --nonaffine-damping 0"
+      for cfg in "0.005 16 32 4" "0.005 16 64 2" "0.005 16 64 4" "0.0025 32 32 4" "0.0025 32 64 4"; do
+        read -r sp hole sub it <<< "$cfg"
+        $t --spacing "$sp" --hole "$hole" --sill "$hole" --substeps "$sub" --iterations "$it" \
+          --json "$out/torricelli_${sp}_${sub}x${it}_${gpu}.json" 2>&1 | grep -v '^Module' | tail -2
+      done ;;
     tolerance-chart)
       # fixed counts against the tolerance modes at 8 substeps, one session (docs/images/speed_accuracy_tolerance.png)
       sa="python3 -W ignore -m benchmarks speed_accuracy --per-l 40 --depth 31 --sample-every 6 --substeps 8"
