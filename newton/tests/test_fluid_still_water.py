@@ -179,6 +179,26 @@ def test_still_column_comes_to_rest(test, device):
     test.assertGreater(churn[120:].mean(), 10.0 * rms[120:].mean())
 
 
+# the floating-box scene: spacing [m], pool half-width [m], pool depth [m], box half-height [m] (its half-width
+# is 0.15 m), box density [kg/m^3]
+BOX_SPACING, BOX_POOL_HALF, BOX_POOL_DEPTH, BOX_HALF_HEIGHT, BOX_DENSITY = 0.05, 0.4, 0.3, 0.1, 500.0
+
+
+def floating_box_sim(device, **solver_kwargs):
+    """The scene of :func:`floating_box` at its start: the box dropped onto the settled-lattice pool, 8 x 2."""
+    d, box = BOX_SPACING, BOX_HALF_HEIGHT
+    model = pool_with_box(
+        device, BOX_DENSITY, d, BOX_POOL_HALF, BOX_POOL_DEPTH, (0.15, 0.15, box), box_z=BOX_POOL_DEPTH + box
+    )
+    return Sim(model, substeps=8, contacts=True, fluid_rest_distance=d, **solver_kwargs)
+
+
+def tilt_deg(body_q) -> float:
+    """How far a body's up axis leans from the vertical [deg], from its pose ``(x, y, z, qx, qy, qz, qw)``."""
+    qx, qy = body_q[3], body_q[4]
+    return math.degrees(math.acos(min(1.0, 1.0 - 2.0 * (qx * qx + qy * qy))))
+
+
 def floating_box(device, **solver_kwargs):
     """A 500 kg/m^3 box 0.3 x 0.3 m wide and 4 spacings (0.2 m) tall on a 0.8 m pool 0.3 m deep at 0.05 m,
     8 x 2, no viscosity, 5 s.
@@ -189,16 +209,14 @@ def floating_box(device, **solver_kwargs):
     angular and vertical speed over the last second, and its draft over Archimedes' (the still level
     away from the box, as test_floating_box_draft_matches_archimedes).
     """
-    d, half, depth, box, density = 0.05, 0.4, 0.3, 0.1, 500.0
-    model = pool_with_box(device, density, d, half, depth, (0.15, 0.15, box), box_z=depth + box)
-    sim = Sim(model, substeps=8, contacts=True, fluid_rest_distance=d, **solver_kwargs)
+    d, box, density = BOX_SPACING, BOX_HALF_HEIGHT, BOX_DENSITY
+    sim = floating_box_sim(device, **solver_kwargs)
     sim.step(240)
     tilt, spin, sink = [], [], []
     for _ in range(6):
         sim.step(10)
         body_q, body_qd = sim.state_0.body_q.numpy()[0], sim.state_0.body_qd.numpy()[0]
-        qx, qy = body_q[3], body_q[4]
-        tilt.append(math.degrees(math.acos(min(1.0, 1.0 - 2.0 * (qx * qx + qy * qy)))))
+        tilt.append(tilt_deg(body_q))
         spin.append(float(np.linalg.norm(body_qd[3:])))
         sink.append(abs(float(body_qd[2])))
     q = sim.q()

@@ -10,14 +10,18 @@ solver keywords).
 """
 
 import json
-import math
 import sys
 
 import numpy as np
 import warp as wp
 
 sys.path.insert(0, ".")
-from newton.tests.test_solver_xpbd_fluid import Sim, pool_with_box  # noqa: E402
+from newton.tests.test_fluid_still_water import (  # noqa: E402
+    BOX_HALF_HEIGHT,
+    BOX_SPACING,
+    floating_box_sim,
+    tilt_deg,
+)
 
 
 def main():
@@ -25,14 +29,12 @@ def main():
     device = sys.argv[1] if len(sys.argv) > 1 else "cpu"
     seconds = float(sys.argv[2]) if len(sys.argv) > 2 else 8.0
     keywords = json.loads(sys.argv[3]) if len(sys.argv) > 3 else {}
-    d, half, depth, box, density = 0.05, 0.4, 0.3, 0.1, 500.0
-    model = pool_with_box(device, density, d, half, depth, (0.15, 0.15, box), box_z=depth + box)
-    sim = Sim(model, substeps=8, contacts=True, fluid_rest_distance=d, **keywords)
+    d, box = BOX_SPACING, BOX_HALF_HEIGHT
+    sim = floating_box_sim(device, **keywords)
     for k in range(int(seconds * 6)):
         sim.step(10)
         bq, bqd = sim.state_0.body_q.numpy()[0], sim.state_0.body_qd.numpy()[0]
-        qx, qy = bq[3], bq[4]
-        tilt = math.degrees(math.acos(min(1.0, 1.0 - 2.0 * (qx * qx + qy * qy))))
+        tilt = tilt_deg(bq)
         v, q = sim.qd(), sim.q()
         rms = float(np.sqrt((v * v).sum(1).mean()))
         # the fluid within two spacings of the box's sides and bottom
