@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/archive/performance_notebook.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|collision|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|exact|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|collision|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
 set -u
 out=${1:?output folder}; shift
 export PYTHONUNBUFFERED=1
@@ -69,6 +69,21 @@ for what in "$@"; do
       # the speed-accuracy sweep of docs/archive/validation_notebook.md at 99,200 particles (Koshizuka & Oka column, 40 per L x 31)
       python3 -W ignore -m benchmarks speed_accuracy --per-l 40 --depth 31 --sample-every 6 --tolerances 0.005 0.0025 0.001 \
         --json "$out/speed_accuracy_100k_${gpu}.json" 2>&1 | grep -v '^Module' ;;
+    accuracy-causes)
+      # what holds the 80-layer column at coarse settings (docs/validation.rst, "Where the method fails"): runs to
+      # the end, with the particles the tank walls let through, at the defaults, at the step of 1 without the
+      # non-affine damping, and both without continuous collision. Settings the defaults crush (2 x 1, 2 x 2,
+      # 4 x 1) are left out: run to the end, their host-side density estimate takes minutes per sample
+      for v in "" "--relaxation 1 --nonaffine-damping 0" "--no-continuous-collision" \
+        "--relaxation 1 --nonaffine-damping 0 --no-continuous-collision"; do
+        tag=${v//[ -.]/_}; echo "== $v"
+        for c in "2 8" "4 2" "8 1" "8 2"; do
+          read -r s i <<< "$c"
+          python3 -W ignore -m benchmarks speed_accuracy --per-l 40 --depth 31 --sample-every 6 --substeps "$s" \
+            --iterations "$i" --tolerances --crushed 0 $v \
+            --json "$out/speed_accuracy_100k_to_end${tag}_${s}x${i}_${gpu}.json" 2>&1 | tr '\r' '\n' | grep -E '^fixed'
+        done
+      done ;;
     exact)
       # physical error against cost, problems with exact answers (docs/archive/validation_notebook.md "Exact answers"):
       # the standing wave (about 100k) and Torricelli's jet (about 150k) over substeps x iterations and modes

@@ -97,6 +97,10 @@ class Recorder:
                 "p99_compression": density["p99_compression_walls"],
                 "max_compression": density["max_compression_walls"],
                 "min_wall_distance": float(min(q[:, 0].min(), q[:, 1].min(), q[:, 2].min())) / self.d,
+                # particles beyond a wall of the tank: fluid thrown over the walls or let through them
+                "outside_tank": int(
+                    np.any([q @ np.asarray(n, dtype=np.float64) < o for n, o in self.walls], axis=0).sum()
+                ),
             }
         )
 
