@@ -17,7 +17,9 @@ so the surface becomes ``eta = a cos(k x) sin(w t)`` with ``a = --amplitude h``.
 fluid's centre of mass, which the first mode moves by ``-2 L eta_1 / (pi^2 h)`` along x (an average over
 every particle: no surface detection, no churn of single particles). From its zero crossings come the
 periods, from its extremes the share of the amplitude kept per period (each extreme against the one a
-period later, the geometric mean over ``--periods`` periods).
+period later, the geometric mean over ``--periods`` periods). With ``--energy`` it also records, every
+quarter period, the fluid's kinetic energy, its potential energy above the settled state and the kinetic
+energy in the mode's velocity field: where the wave's energy goes (``--amplitude 0``: the tank's own).
 
 Usage::
 
@@ -65,6 +67,21 @@ def mode_velocity(q: np.ndarray, length: float, depth: float, amplitude: float) 
     v[:, 0] = -scale * np.sin(k * x) * np.cosh(k * z)
     v[:, 2] = scale * np.cos(k * x) * np.sinh(k * z)
     return v, omega
+
+
+def energy_budget(state, q_rest: np.ndarray, mass: float, length: float, depth: float, t: float) -> dict:
+    """The fluid's kinetic energy, its potential energy above the settled state ``q_rest``, and the kinetic
+    energy in the first mode's velocity field (the velocity's projection on it at today's positions) [J]."""
+    q = state.particle_q.numpy().astype(np.float64)
+    u = state.particle_qd.numpy().astype(np.float64)
+    mode, _ = mode_velocity(q, length, depth, 1.0)
+    share = float((u * mode).sum()) / float((mode * mode).sum())
+    return {
+        "t_s": t,
+        "kinetic_J": 0.5 * mass * float((u * u).sum()),
+        "potential_J": mass * GRAVITY * float(q[:, 2].sum() - q_rest[:, 2].sum()),
+        "mode_kinetic_J": 0.5 * mass * share * share * float((mode * mode).sum()),
+    }
 
 
 def crossings(t: np.ndarray, s: np.ndarray) -> np.ndarray:
@@ -138,6 +155,9 @@ def run(args, device) -> dict:
     period = 2.0 * math.pi / omega
     frames = math.ceil((args.periods + 0.75) * period * 60.0)
     t, s = [0.0], [0.0]
+    mass = float(model.particle_mass.numpy()[0])
+    energy, wave_energy = [], 0.5 * mass * float((v * v).sum())
+    quarter = max(1, round(period * 60.0 / 4.0))
     simulated = 0.0  # [s] of the frames themselves, read-backs left out
     for f in track(range(frames), "sloshing: waves", unit="frame"):
         tick = time.perf_counter()
@@ -146,6 +166,8 @@ def run(args, device) -> dict:
         simulated += time.perf_counter() - tick
         t.append((f + 1) / 60.0)
         s.append(float(states[0].particle_q.numpy()[:, 0].astype(np.float64).mean()) - x_rest)
+        if args.energy and (f + 1) % quarter == 0:
+            energy.append(energy_budget(states[0], q, mass, length, level, (f + 1) / 60.0))
     wall = time.perf_counter() - start
     t, s = np.asarray(t), np.asarray(s)
     control = None
@@ -185,6 +207,9 @@ def run(args, device) -> dict:
         "ms_per_frame": 1000.0 * simulated / frames,
         "wall_s": wall,
         "control_largest_drift_m": None if control is None else float(np.abs(control["signal_m"]).max()),
+        # --energy: the wave's kinetic energy at the start [J], and the budget every quarter period
+        "wave_energy_J": wave_energy,
+        "energy": energy,
         "signal_t_s": t[:: max(1, len(t) // 400)].tolist(),
         "signal_m": s[:: max(1, len(s) // 400)].tolist(),
     }
@@ -209,6 +234,11 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--control", action="store_true", help="subtract the centre-of-mass drift of the same tank without the wave"
     )
+    p.add_argument(
+        "--energy",
+        action="store_true",
+        help="record and print the energy budget every quarter period (kinetic, potential, the mode's share)",
+    )
     add_solver_arguments(p)
     return p
 
@@ -221,6 +251,15 @@ def main(argv=None):
         f"{'T':>8}{'err':>7}{'kept/T':>8}{'mean|e|':>8}"
     )
     name = device.name if device.is_cuda else "cpu"
+    if r["energy"]:
+        # over the wave's starting energy, or in joules without a wave
+        unit = r["wave_energy_J"] if r["wave_energy_J"] > 0.0 else 1.0
+        # (the potential energy is in the record only: a 0.5 % change of the bulk's density moves it by
+        # about the wave's energy, so it says little of the wave)
+        print(f"{'t/T':>6}{'kinetic':>10}{'in mode':>10}  ({'over E0' if unit != 1.0 else 'J'})")
+        for e in r["energy"]:
+            k, m = e["kinetic_J"] / unit, e["mode_kinetic_J"] / unit
+            print(f"{e['t_s'] / r['theory_period_s']:>6.2f}{k:>10.3g}{m:>10.3g}")
     print(
         f"{name:<10}{r['particles']:>10}{r['per_length']:>5}{r['ratio_h_L']:>5.2f}{r['substeps']:>5} x {r['iterations']:<1}"
         f"{r['nonaffine_damping']:>8.2f}{r['theory_period_s']:>9.4f}{r['period_s']:>8.4f}{100 * r['period_error']:>6.1f}%"
