@@ -69,11 +69,11 @@ def mode_velocity(q: np.ndarray, length: float, depth: float, amplitude: float) 
     return v, omega
 
 
-def energy_budget(state, q_rest: np.ndarray, mass: float, length: float, depth: float, t: float) -> dict:
+def energy_budget(
+    q: np.ndarray, u: np.ndarray, q_rest: np.ndarray, mass: float, length: float, depth: float, t: float
+) -> dict:
     """The fluid's kinetic energy, its potential energy above the settled state ``q_rest``, and the kinetic
-    energy in the first mode's velocity field (the velocity's projection on it at today's positions) [J]."""
-    q = state.particle_q.numpy().astype(np.float64)
-    u = state.particle_qd.numpy().astype(np.float64)
+    energy in the first mode's velocity field (the velocity's projection on it at positions ``q``) [J]."""
     mode, _ = mode_velocity(q, length, depth, 1.0)
     share = float((u * mode).sum()) / float((mode * mode).sum())
     return {
@@ -165,9 +165,11 @@ def run(args, device) -> dict:
         wp.synchronize_device(device)
         simulated += time.perf_counter() - tick
         t.append((f + 1) / 60.0)
-        s.append(float(states[0].particle_q.numpy()[:, 0].astype(np.float64).mean()) - x_rest)
+        q_now = states[0].particle_q.numpy().astype(np.float64)
+        s.append(float(q_now[:, 0].mean()) - x_rest)
         if args.energy and (f + 1) % quarter == 0:
-            energy.append(energy_budget(states[0], q, mass, length, level, (f + 1) / 60.0))
+            u = states[0].particle_qd.numpy().astype(np.float64)
+            energy.append(energy_budget(q_now, u, q, mass, length, level, (f + 1) / 60.0))
     wall = time.perf_counter() - start
     t, s = np.asarray(t), np.asarray(s)
     control = None
