@@ -60,16 +60,9 @@ def quarter_density_table(spacing: float, h: float, mass: float, size: int = 33)
     return deltas, rho * window[:, None] * window[None, :]
 
 
-def measure_density_error(q: np.ndarray, mass: float, spacing: float, h: float, walls=()) -> dict:
-    """Poly6 density of every particle relative to the rest-lattice density, independent of the solver.
-
-    ``walls`` are planes ``(normal, offset)`` (fluid side ``dot(normal, x) > offset``). The
-    ``*_walls`` results add the density of the lattice the fluid would continue as behind each
-    plane (the tabulated ghost-lattice sum the solver also uses), less, for each pair of
-    perpendicular planes, that of the lattice behind both (counted by both; an exact sum here,
-    where the solver uses a product of the two distances' factors); the others are the fluid's own sum.
-    """
-    from scipy.interpolate import RegularGridInterpolator  # noqa: PLC0415
+def poly6_density(q: np.ndarray, mass: float, spacing: float, h: float) -> tuple[np.ndarray, float]:
+    """Each particle's poly6 density over all particles (its own included, no walls) [kg/m^3], and the
+    rest lattice's at ``spacing`` (the reference both estimators are read against)."""
     from scipy.spatial import cKDTree  # noqa: PLC0415
 
     n = int(math.ceil(h / spacing))
@@ -83,6 +76,21 @@ def measure_density_error(q: np.ndarray, mass: float, spacing: float, h: float, 
     rho = np.full(len(q), mass * poly6(np.zeros(1), h)[0])
     np.add.at(rho, pairs[:, 0], w)
     np.add.at(rho, pairs[:, 1], w)
+    return rho, rho0
+
+
+def measure_density_error(q: np.ndarray, mass: float, spacing: float, h: float, walls=()) -> dict:
+    """Poly6 density of every particle relative to the rest-lattice density, independent of the solver.
+
+    ``walls`` are planes ``(normal, offset)`` (fluid side ``dot(normal, x) > offset``). The
+    ``*_walls`` results add the density of the lattice the fluid would continue as behind each
+    plane (the tabulated ghost-lattice sum the solver also uses), less, for each pair of
+    perpendicular planes, that of the lattice behind both (counted by both; an exact sum here,
+    where the solver uses a product of the two distances' factors); the others are the fluid's own sum.
+    """
+    from scipy.interpolate import RegularGridInterpolator  # noqa: PLC0415
+
+    rho, rho0 = poly6_density(q, mass, spacing, h)
     rho_walls = rho.copy()
     table, _ = wall_density_tables(spacing, h, mass)
     samples = np.linspace(0.0, h, len(table))

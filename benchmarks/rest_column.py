@@ -27,12 +27,13 @@ import time
 
 import numpy as np
 import warp as wp
-from scipy.spatial import ConvexHull, Voronoi, cKDTree
+from scipy.spatial import ConvexHull, Voronoi
 
 import newton
 from newton.examples.fluid.common import add_closed_box, add_water_lattice
 from newton.examples.fluid.progress import track
 
+from .dam_break import poly6_density
 from .frames import add_solver_arguments, solver_keywords, solver_record
 from .run_record import write_record
 
@@ -61,7 +62,7 @@ def interior_density(q: np.ndarray, d: float, h: float) -> dict:
     """Number density and poly6 sum of the particles at least ``h`` inside the column's box, over the lattice's.
 
     The number density is each such particle's Voronoi cell volume over ``d^3``, inverted and averaged;
-    the poly6 sum is the plain kernel sum over all particles (no walls), over the rest lattice's sum.
+    the poly6 sum is the dam break's estimator (:func:`.dam_break.poly6_density`: no walls), over the lattice's.
     """
     lo, hi = q.min(axis=0), q.max(axis=0)
     inner = np.nonzero(np.all((q > lo + h) & (q < hi - h), axis=1))[0]
@@ -69,20 +70,11 @@ def interior_density(q: np.ndarray, d: float, h: float) -> dict:
         return {"interior_particles": 0, "interior_number_density": None, "interior_poly6_density": None}
     vor = Voronoi(q)
     volume = np.array([ConvexHull(vor.vertices[vor.regions[vor.point_region[i]]]).volume for i in inner])
-    pairs = cKDTree(q).query_pairs(h, output_type="ndarray")
-    r2 = np.einsum("ij,ij->i", q[pairs[:, 0]] - q[pairs[:, 1]], q[pairs[:, 0]] - q[pairs[:, 1]])
-    w = (h * h - r2) ** 3
-    total = np.full(len(q), h**6)
-    np.add.at(total, pairs[:, 0], w)
-    np.add.at(total, pairs[:, 1], w)
-    n = int(np.ceil(h / d))
-    k = np.arange(-n, n + 1) * d
-    lattice = (k[:, None, None] ** 2 + k[None, :, None] ** 2 + k[None, None, :] ** 2).ravel()
-    lattice_sum = (np.maximum(h * h - lattice, 0.0) ** 3).sum()
+    rho, rho0 = poly6_density(q, 1.0, d, h)
     return {
         "interior_particles": len(inner),
         "interior_number_density": float(np.mean(d**3 / volume)),
-        "interior_poly6_density": float(np.mean(total[inner]) / lattice_sum),
+        "interior_poly6_density": float(np.mean(rho[inner]) / rho0),
     }
 
 

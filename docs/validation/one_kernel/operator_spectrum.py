@@ -22,6 +22,8 @@ import math
 
 import numpy as np
 
+from newton._src.solvers.xpbd.fluid.calibration import rest_lattice
+
 H = 1.8  # smoothing length over the rest distance
 SAMPLES = 48  # waves per axis over [0, pi / d]
 
@@ -40,11 +42,8 @@ KERNELS = {
 
 
 def main():
-    n = math.ceil(H)
-    k = np.arange(-n, n + 1, dtype=float)
-    lattice = np.stack(np.meshgrid(k, k, k, indexing="ij"), axis=-1).reshape(-1, 3)
+    lattice = rest_lattice(1.0, H)
     r = np.linalg.norm(lattice, axis=1)
-    lattice, r = lattice[r < H], r[r < H]
     off, rn = lattice[r > 0], r[r > 0]
     axis = np.arange(SAMPLES + 1) / SAMPLES * math.pi
     waves = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), axis=-1).reshape(-1, 3)
