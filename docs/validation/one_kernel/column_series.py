@@ -1,0 +1,65 @@
+# SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
+# SPDX-License-Identifier: Apache-2.0
+
+"""The rest column over time: mean height, RMS speed and mean vertical velocity every 6 frames.
+
+The column of ``benchmarks/rest_column.py`` (default 12 x 12 x 40, CPU) from its lattice start, for the
+solver that is importable now (apply a patch of ``docs/archive/patches`` to compare). A mean vertical
+velocity as large as the RMS speed is the whole column moving together: its first acoustic mode.
+docs/archive/validation_notebook.md, "The one-kernel column's slow breathing".
+
+Usage: python docs/validation/one_kernel/column_series.py --out series.json [--layers 40 --seconds 5 ...]
+"""
+
+import argparse
+import json
+
+import numpy as np
+import warp as wp
+
+import newton
+from benchmarks.frames import add_solver_arguments, solver_keywords
+from benchmarks.rest_column import SPACING, build
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--layers", type=int, default=40)
+    parser.add_argument("--n", type=int, default=12)
+    parser.add_argument("--seconds", type=float, default=5.0)
+    parser.add_argument("--out", required=True)
+    add_solver_arguments(parser)
+    args = parser.parse_args()
+    d = SPACING
+    model = build(args.n, args.layers, "cpu")
+    solver = newton.solvers.SolverXPBD(model, **solver_keywords(args, d))
+    pipeline = newton.CollisionPipeline(model, soft_contact_max=2 * model.particle_count, soft_contact_gap=0.5 * d)
+    contacts = pipeline.contacts()
+    states = [model.state(), model.state()]
+    dt = 1.0 / 60.0 / args.substeps
+    rows = []
+    for frame in range(round(args.seconds * 60)):
+        for _ in range(args.substeps):
+            pipeline.collide(states[0], contacts)
+            solver.step(states[0], states[1], None, contacts, dt)
+            states[0], states[1] = states[1], states[0]
+        if frame % 6 == 5:
+            q, v = states[0].particle_q.numpy(), states[0].particle_qd.numpy()
+            rows.append(
+                (
+                    (frame + 1) / 60.0,
+                    float(q[:, 2].mean()),
+                    float(np.sqrt((v * v).sum(1).mean())),
+                    float(v[:, 2].mean()),
+                )
+            )
+            print(
+                f"{rows[-1][0]:.2f} s  mean z {rows[-1][1]:.5f} m  rms {rows[-1][2]:.4f} m/s  mean vz {rows[-1][3]:+.4f}"
+            )
+    with open(args.out, "w") as f:
+        json.dump({"columns": ["t_s", "mean_z_m", "rms_speed_m_s", "mean_vz_m_s"], "rows": rows}, f)
+
+
+if __name__ == "__main__":
+    wp.config.quiet = True
+    main()
