@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/archive/performance_notebook.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|collision|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|collision|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
 set -u
 out=${1:?output folder}; shift
 export PYTHONUNBUFFERED=1
@@ -27,6 +27,21 @@ for what in "$@"; do
         tag=${v//[ -.]/_}; echo "== 1M $v"
         python3 -m benchmarks dam_break $v --particles 1000000 --warmup-frames 20 --frames 10 --trials 3 \
           --json "$out/dam_break_1m_still${tag}_${gpu}.json" 2>&1 | grep -A1 "^device"
+      done ;;
+    modes)
+      # what moves in still water: the 100k pool split by scale and the floating box over time, today's solver and
+      # with docs/archive/patches/one_kernel_density.patch (docs/archive/validation_notebook.md "What moves in still water")
+      for patch in "" one_kernel_density; do
+        [ -n "$patch" ] && git apply "docs/archive/patches/$patch.patch"
+        tag=${patch:-today}
+        for v in "" "--iterations 4" "--substeps 16"; do
+          echo "== pool $tag $v"
+          python3 docs/validation/still_modes/pool_modes.py --device cuda:0 --n 50 --layers 40 $v \
+            --out "$out/pool_modes_50x50x40_${tag}${v//[ -]/_}_${gpu}.json" 2>&1 | grep -E '^ *[0-9.]+ s' | tail -1
+        done
+        python3 docs/validation/floating_box/series.py cuda:0 10 > "$out/floating_box_series_${tag}_${gpu}.txt" 2>/dev/null
+        tail -2 "$out/floating_box_series_${tag}_${gpu}.txt"
+        [ -n "$patch" ] && git apply -R "docs/archive/patches/$patch.patch"
       done ;;
     collision)
       # the cost of continuous collision at the 100k dam break (docs/archive/performance_notebook.md "Continuous collision")

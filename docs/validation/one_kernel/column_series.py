@@ -13,13 +13,16 @@ Usage: python docs/validation/one_kernel/column_series.py --out series.json [--l
 
 import argparse
 import json
+import sys
 
 import numpy as np
 import warp as wp
 
 import newton
-from benchmarks.frames import add_solver_arguments, solver_keywords
-from benchmarks.rest_column import SPACING, build
+
+sys.path.insert(0, ".")
+from benchmarks.frames import add_solver_arguments, solver_keywords  # noqa: E402
+from benchmarks.rest_column import SPACING, build  # noqa: E402
 
 
 def main():
