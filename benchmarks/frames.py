@@ -9,6 +9,7 @@ import argparse
 
 import warp as wp
 
+import newton
 from newton._src.solvers.xpbd.fluid.config import FLUID_KEYWORDS
 
 
@@ -139,6 +140,20 @@ def solver_keywords(args, spacing: float, damping: bool = True, iterations: int 
 def solver_record(solver) -> dict:
     """The solver's settings for a JSON record: its iterations and every fluid keyword's value in use."""
     return {"iterations": solver.iterations, **{name: getattr(solver, name) for name in SOLVER_KEYWORDS}}
+
+
+def contact_frames(model, args, spacing: float, device) -> tuple:
+    """The solver at ``args``' keywords and :class:`Frames` stepping ``model`` with contacts every substep.
+
+    The collision pipeline finds particle-shape contacts within half a ``spacing`` [m] (room for two per
+    particle). Returns ``(solver, frames)``; ``frames.states[0]`` holds the current state.
+    """
+    solver = newton.solvers.SolverXPBD(model, **solver_keywords(args, spacing))
+    pipeline = newton.CollisionPipeline(
+        model, soft_contact_max=2 * model.particle_count, soft_contact_gap=0.5 * spacing
+    )
+    states = [model.state(), model.state()]
+    return solver, Frames(solver, pipeline, pipeline.contacts(), states, args.substeps, wp.get_device(device))
 
 
 def run_on_device(run, args):

@@ -18,10 +18,8 @@ import sys
 import numpy as np
 import warp as wp
 
-import newton
-
 sys.path.insert(0, ".")
-from benchmarks.frames import add_solver_arguments, solver_keywords  # noqa: E402
+from benchmarks.frames import add_solver_arguments, contact_frames  # noqa: E402
 from benchmarks.rest_column import SPACING, build  # noqa: E402
 
 
@@ -35,17 +33,11 @@ def main():
     args = parser.parse_args()
     d = SPACING
     model = build(args.n, args.layers, "cpu")
-    solver = newton.solvers.SolverXPBD(model, **solver_keywords(args, d))
-    pipeline = newton.CollisionPipeline(model, soft_contact_max=2 * model.particle_count, soft_contact_gap=0.5 * d)
-    contacts = pipeline.contacts()
-    states = [model.state(), model.state()]
-    dt = 1.0 / 60.0 / args.substeps
+    _, frames = contact_frames(model, args, d, "cpu")
+    states = frames.states
     rows = []
     for frame in range(round(args.seconds * 60)):
-        for _ in range(args.substeps):
-            pipeline.collide(states[0], contacts)
-            solver.step(states[0], states[1], None, contacts, dt)
-            states[0], states[1] = states[1], states[0]
+        frames()
         if frame % 6 == 5:
             q, v = states[0].particle_q.numpy(), states[0].particle_qd.numpy()
             rows.append(

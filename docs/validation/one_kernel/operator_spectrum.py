@@ -12,8 +12,9 @@ today's pair (poly6 density, spiky gradient) and for one kernel on both sides, t
 smallest eigenvalue, the stable step (0.875 x 2 over the largest, at most 1; today's default 0.72
 is computed with the spiky gradient on both sides), the long-wave correction per pass (step x the
 eigenvalue of the longest wave sampled) and the sum's response to a uniform compression
-(-d ln(sum) / d ln(spacing); the number density's is 3). docs/archive/validation_notebook.md, "One
-kernel for the density and its gradient".
+(-d ln(sum) / d ln(spacing); the number density's is 3). Then the same for the poly6 density with a
+correction gradient blended from spiky's and poly6's. docs/archive/validation_notebook.md, "One
+kernel for the density and its gradient" and "What moves in still water".
 
 Usage: python docs/validation/one_kernel/operator_spectrum.py
 """
@@ -67,6 +68,25 @@ def main():
             f"{dens + ', ' + corr:<22}{mu.max():>9.3f}{mu.min():>10.3f}{step:>7.3f}{step * mu[longest]:>11.5f}"
             f"{response:>10.2f}"
         )
+    blend_table(KERNELS["poly6"], KERNELS["spiky"], r, off, rn, sines, longest)
+
+
+def blend_table(poly6, spiky, r, off, rn, sines, longest):
+    """The poly6 density with the correction gradient ``alpha spiky + (1 - alpha) poly6``, per ``alpha``.
+
+    The spiky part is scaled so the blend keeps poly6's long-wave response (as
+    ``docs/archive/patches/blended_correction_gradient.patch`` does in the solver).
+    """
+    rest = poly6[0](r).sum()
+    g_poly6 = off / rn[:, None] * (-poly6[1](rn) / rest)[:, None]
+    g_spiky = off / rn[:, None] * (-spiky[1](rn) / rest)[:, None]
+    g_spiky *= np.einsum("ij,ij", g_poly6, g_poly6) / np.einsum("ij,ij", g_spiky, g_poly6)
+    print(f"\npoly6 density, blended gradient\n{'alpha':>6}{'largest':>9}{'smallest':>10}{'step':>7}{'long wave':>11}")
+    for alpha in (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.7, 1.0):
+        g = alpha * g_spiky + (1.0 - alpha) * g_poly6
+        mu = np.einsum("ij,ij->i", sines @ g_poly6, sines @ g) / np.einsum("ij,ij->", g, g)
+        step = min(1.0, 0.875 * 2.0 / mu.max())
+        print(f"{alpha:>6.1f}{mu.max():>9.3f}{mu.min():>10.4f}{step:>7.3f}{step * mu[longest]:>11.5f}")
 
 
 if __name__ == "__main__":

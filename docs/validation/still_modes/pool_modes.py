@@ -21,10 +21,8 @@ import sys
 import numpy as np
 import warp as wp
 
-import newton
-
 sys.path.insert(0, ".")
-from benchmarks.frames import add_solver_arguments, solver_keywords  # noqa: E402
+from benchmarks.frames import add_solver_arguments, contact_frames  # noqa: E402
 from benchmarks.rest_column import SPACING, build  # noqa: E402
 
 
@@ -55,18 +53,12 @@ def main():
     d = SPACING
     with wp.ScopedDevice(args.device):
         model = build(args.n, args.layers, args.device)
-        solver = newton.solvers.SolverXPBD(model, **solver_keywords(args, d))
-        pipeline = newton.CollisionPipeline(model, soft_contact_max=2 * model.particle_count, soft_contact_gap=0.5 * d)
-        contacts = pipeline.contacts()
-        states = [model.state(), model.state()]
-        dt = 1.0 / 60.0 / args.substeps
+        solver, frames = contact_frames(model, args, d, args.device)
+        states = frames.states
         top = model.particle_q.numpy()[:, 2] > (args.layers - 1) * d
         rows = []
         for frame in range(round(args.seconds * 60)):
-            for _ in range(args.substeps):
-                pipeline.collide(states[0], contacts)
-                solver.step(states[0], states[1], None, contacts, dt)
-                states[0], states[1] = states[1], states[0]
+            frames()
             if frame % args.every == args.every - 1:
                 q = states[0].particle_q.numpy().astype(np.float64)
                 v = states[0].particle_qd.numpy().astype(np.float64)

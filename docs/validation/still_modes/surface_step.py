@@ -22,8 +22,9 @@ import warp as wp
 import newton
 
 sys.path.insert(0, ".")
-from benchmarks.frames import add_solver_arguments, solver_keywords  # noqa: E402
+from benchmarks.frames import add_solver_arguments, contact_frames  # noqa: E402
 from newton.examples.fluid.common import add_closed_box  # noqa: E402
+from newton.tests.test_solver_xpbd_fluid import add_block  # noqa: E402
 
 SPACING = 0.05  # [m]
 
@@ -31,22 +32,9 @@ SPACING = 0.05  # [m]
 def build(nx: int, ny: int, base: int, step: int):
     d = SPACING
     builder = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))
-    flags = int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID)
     for columns, layers, z0 in ((nx, base, 0), (nx // 2, step, base)):
-        builder.add_particle_grid(
-            pos=wp.vec3(0.5 * d, 0.5 * d, (z0 + 0.5) * d),
-            rot=wp.quat_identity(),
-            vel=wp.vec3(0.0),
-            dim_x=columns,
-            dim_y=ny,
-            dim_z=layers,
-            cell_x=d,
-            cell_y=d,
-            cell_z=d,
-            mass=1000.0 * d**3,
-            jitter=0.0,
-            radius_mean=0.5 * d,
-            flags=flags,
+        add_block(
+            builder, (columns, ny, layers), (0.5 * d, 0.5 * d, (z0 + 0.5) * d), d, mass=1000.0 * d**3, radius=0.5 * d
         )
     add_closed_box(builder, nx * d, 3.0 * (base + step) * d, width=ny * d)
     model = builder.finalize(device="cpu")
@@ -66,18 +54,12 @@ def main():
     args = parser.parse_args()
     d = SPACING
     model = build(args.nx, args.ny, args.base, args.step)
-    solver = newton.solvers.SolverXPBD(model, **solver_keywords(args, d))
-    pipeline = newton.CollisionPipeline(model, soft_contact_max=2 * model.particle_count, soft_contact_gap=0.5 * d)
-    contacts = pipeline.contacts()
-    states = [model.state(), model.state()]
-    dt = 1.0 / 60.0 / args.substeps
+    _, frames = contact_frames(model, args, d, "cpu")
+    states = frames.states
     quarter = args.nx // 4
     rows = []
     for frame in range(round(args.seconds * 60)):
-        for _ in range(args.substeps):
-            pipeline.collide(states[0], contacts)
-            solver.step(states[0], states[1], None, contacts, dt)
-            states[0], states[1] = states[1], states[0]
+        frames()
         if frame % 15 == 14:
             q, v = states[0].particle_q.numpy(), states[0].particle_qd.numpy()
             column = np.clip((q[:, 0] / d).astype(int), 0, args.nx - 1)
