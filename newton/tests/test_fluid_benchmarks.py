@@ -145,6 +145,34 @@ def test_every_case_writes_the_same_record(test, device):
         sys.path.remove(str(ROOT))
 
 
+def test_rest_column_splits_speed_by_scale(test, device):
+    # rest_column's split of the RMS speed: a lattice of 8^3 particles in cells of 4 x 4 x 4
+    if not HAS_BENCHMARKS:
+        test.skipTest("benchmarks/ is part of the source checkout, not of the installed wheel")
+    sys.path.insert(0, str(ROOT))
+    try:
+        import numpy as np  # noqa: PLC0415
+
+        from benchmarks.rest_column import velocity_scales  # noqa: PLC0415
+
+        g = (np.arange(8) + 0.5) * 0.1
+        q = np.stack(np.meshgrid(g, g, g, indexing="ij"), axis=-1).reshape(-1, 3)
+        cell = 0.4
+        # the fluid moving together
+        v = np.tile([0.3, 0.0, -0.4], (len(q), 1))
+        np.testing.assert_allclose(velocity_scales(q, v, cell), (0.5, 0.0, 0.0), atol=1e-12)
+        # cells moving against each other, each one rigidly: a long wave
+        v = np.zeros_like(q)
+        v[:, 2] = np.where(q[:, 0] < cell, 0.2, -0.2)
+        np.testing.assert_allclose(velocity_scales(q, v, cell), (0.0, 0.2, 0.0), atol=1e-12)
+        # neighbours moving against each other: particle scale
+        v = np.zeros_like(q)
+        v[:, 1] = 0.1 * (-1.0) ** np.arange(len(q))
+        np.testing.assert_allclose(velocity_scales(q, v, cell), (0.0, 0.0, 0.1), atol=1e-12)
+    finally:
+        sys.path.remove(str(ROOT))
+
+
 class TestFluidBenchmarks(unittest.TestCase):
     pass
 

@@ -23,21 +23,7 @@ import warp as wp
 
 sys.path.insert(0, ".")
 from benchmarks.frames import add_solver_arguments, contact_frames  # noqa: E402
-from benchmarks.rest_column import SPACING, build  # noqa: E402
-
-
-def split(q: np.ndarray, v: np.ndarray, cell: float) -> tuple[float, float, float]:
-    """RMS speeds of the mean motion, the coarse cells' motion less the mean, and the particles' against their cell."""
-    mean = v.mean(axis=0)
-    keys = np.floor(q / cell).astype(np.int64)
-    _, inverse = np.unique(keys, axis=0, return_inverse=True)
-    inverse = inverse.reshape(-1)
-    count = np.bincount(inverse).astype(np.float64)
-    cell_v = np.stack([np.bincount(inverse, weights=v[:, a]) for a in range(3)], axis=1) / count[:, None]
-    coarse = cell_v[inverse] - mean
-    fine = v - cell_v[inverse]
-    rms = lambda x: float(np.sqrt((x * x).sum(axis=-1).mean()))  # noqa: E731
-    return rms(mean[None, :]), rms(coarse), rms(fine)
+from benchmarks.rest_column import SPACING, build, velocity_scales  # noqa: E402
 
 
 def main():
@@ -62,7 +48,7 @@ def main():
             if frame % args.every == args.every - 1:
                 q = states[0].particle_q.numpy().astype(np.float64)
                 v = states[0].particle_qd.numpy().astype(np.float64)
-                whole, coarse, fine = split(q, v, args.cell * d)
+                whole, coarse, fine = velocity_scales(q, v, args.cell * d)
                 com = q.mean(axis=0)
                 rows.append(
                     {
