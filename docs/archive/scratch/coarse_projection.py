@@ -1,0 +1,108 @@
+# SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
+# SPDX-License-Identifier: Apache-2.0
+
+"""Scratch (not adopted): a coarse projection of the fluid's velocity after every ``SolverXPBD.step``.
+
+After each step the fluid's velocities are averaged over cells of ``COARSE_CELL`` spacings
+(``COARSE_D`` [m]) in the closed box ``[0, COARSE_BOX]`` [m]; in the cells at least half full the
+divergence of that coarse field (central differences, no flow through the box's walls) is removed by
+``COARSE_BETA`` times the gradient of the potential solving ``lap phi = div`` (zero in the cells less
+than half full: the free surface; no gradient through the walls; a dense solve, NumPy, CPU only).
+Then runs ``python -m benchmarks ARGS`` (or a script, if the first argument ends in ``.py``).
+docs/archive/validation_notebook.md, "What moves in still water".
+
+Usage: COARSE_BOX=0.6,0.6,1.8 COARSE_D=0.05 [COARSE_CELL=3 COARSE_BETA=1] python
+docs/archive/scratch/coarse_projection.py rest_column --layers 24
+"""
+
+import os
+import runpy
+import sys
+
+import numpy as np
+
+import newton
+
+BETA = float(os.environ.get("COARSE_BETA", "1"))
+CELL = int(os.environ.get("COARSE_CELL", "3"))
+BOX = np.array([float(x) for x in os.environ["COARSE_BOX"].split(",")])
+H = CELL * float(os.environ["COARSE_D"])
+DIMS = np.maximum(np.ceil(BOX / H - 1e-9).astype(int), 1)
+N = int(np.prod(DIMS))
+_solves = {}
+
+
+def laplacian(full: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The Laplacian over the full cells (zero potential in the others, none through the walls) and those cells."""
+    index = -np.ones(N, dtype=int)
+    cells = np.nonzero(full)[0]
+    index[cells] = np.arange(len(cells))
+    a = np.zeros((len(cells), len(cells)))
+    for row, ijk in enumerate(np.array(np.unravel_index(cells, DIMS)).T):
+        for axis in range(3):
+            for side in (-1, 1):
+                nb = ijk.copy()
+                nb[axis] += side
+                if nb[axis] < 0 or nb[axis] >= DIMS[axis]:
+                    continue
+                a[row, row] -= 1.0
+                k = index[np.ravel_multi_index(nb, DIMS)]
+                if k >= 0:
+                    a[row, k] += 1.0
+    return a / H**2, cells
+
+
+def central(field: np.ndarray, axis: int, wall_sign: float) -> np.ndarray:
+    """Central difference along ``axis``, the value beyond a wall ``wall_sign`` times the one inside it."""
+    plus, minus = np.roll(field, -1, axis=axis), np.roll(field, 1, axis=axis)
+    last, first = [slice(None)] * 3, [slice(None)] * 3
+    last[axis], first[axis] = -1, 0
+    plus[tuple(last)] = wall_sign * field[tuple(last)]
+    minus[tuple(first)] = wall_sign * field[tuple(first)]
+    return (plus - minus) / (2.0 * H)
+
+
+def project(q: np.ndarray, v: np.ndarray, fluid: np.ndarray) -> None:
+    cell = np.ravel_multi_index(np.clip((q[fluid] / H).astype(int), 0, DIMS - 1).T, DIMS)
+    count = np.bincount(cell, minlength=N).astype(float)
+    u = np.stack([np.bincount(cell, weights=v[fluid, a], minlength=N) for a in range(3)], axis=1)
+    u[count > 0] /= count[count > 0, None]
+    full = count >= 0.5 * CELL**3
+    key = full.tobytes()
+    if key not in _solves:
+        a, cells = laplacian(full)
+        _solves.clear()
+        _solves[key] = (np.linalg.inv(a) if len(cells) else None, cells)
+    inverse, cells = _solves[key]
+    if inverse is None:
+        return
+    grid = u.reshape(*DIMS, 3)
+    div = sum(central(grid[..., a], a, -1.0) for a in range(3))
+    phi = np.zeros(N)
+    phi[cells] = inverse @ div.reshape(-1)[cells]
+    phi = phi.reshape(DIMS)
+    grad = np.stack([central(phi, a, 1.0) for a in range(3)], axis=-1).reshape(N, 3)
+    inside = full[cell]
+    v[np.nonzero(fluid)[0][inside]] -= BETA * grad[cell[inside]]
+
+
+_step = newton.solvers.SolverXPBD.step
+
+
+def step(self, state_in, state_out, control, contacts, dt, **kwargs):
+    _step(self, state_in, state_out, control, contacts, dt, **kwargs)
+    if BETA > 0.0:
+        fluid = (self.model.particle_flags.numpy() & int(newton.ParticleFlags.FLUID)) != 0
+        project(state_out.particle_q.numpy().astype(np.float64), state_out.particle_qd.numpy(), fluid)
+
+
+if __name__ == "__main__":
+    newton.solvers.SolverXPBD.step = step
+    sys.path.insert(0, ".")
+    if sys.argv[1].endswith(".py"):
+        script = sys.argv[1]
+        sys.argv = sys.argv[1:]
+        runpy.run_path(script, run_name="__main__")
+    else:
+        sys.argv = ["benchmarks", *sys.argv[1:]]
+        runpy.run_module("benchmarks", run_name="__main__")
