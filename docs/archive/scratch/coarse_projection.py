@@ -29,7 +29,39 @@ BOX = np.array([float(x) for x in os.environ["COARSE_BOX"].split(",")])
 H = CELL * float(os.environ["COARSE_D"])
 DIMS = np.maximum(np.ceil(BOX / H - 1e-9).astype(int), 1)
 N = int(np.prod(DIMS))
+EXACT = os.environ.get("COARSE_EXACT", "0") == "1"
 _solves = {}
+
+
+def operators(full: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The central gradient (every cell, from the full cells' potential) and divergence (at the full cells).
+
+    ``COARSE_EXACT=1``: the projection solves ``D G phi = D u`` with these two (least squares), so the
+    corrected field has no divergence in the full cells, and every cell holding fluid is corrected.
+    """
+    cells = np.nonzero(full)[0]
+    index = -np.ones(N, dtype=int)
+    index[cells] = np.arange(len(cells))
+    g = np.zeros((3 * N, len(cells)))
+    d = np.zeros((len(cells), 3 * N))
+    for c, ijk in enumerate(np.array(np.unravel_index(np.arange(N), DIMS)).T):
+        for axis in range(3):
+            for side in (-1, 1):
+                nb = ijk.copy()
+                nb[axis] += side
+                if nb[axis] < 0 or nb[axis] >= DIMS[axis]:
+                    # beyond a wall: the potential is the cell's own, the normal velocity its opposite
+                    if index[c] >= 0:
+                        g[3 * c + axis, index[c]] += side / (2.0 * H)
+                    if index[c] >= 0:
+                        d[index[c], 3 * c + axis] -= side / (2.0 * H)
+                    continue
+                k = np.ravel_multi_index(nb, DIMS)
+                if index[k] >= 0:
+                    g[3 * c + axis, index[k]] += side / (2.0 * H)
+                if index[c] >= 0:
+                    d[index[c], 3 * k + axis] += side / (2.0 * H)
+    return g, d, cells
 
 
 def laplacian(full: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -69,6 +101,17 @@ def project(q: np.ndarray, v: np.ndarray, fluid: np.ndarray) -> None:
     u[count > 0] /= count[count > 0, None]
     full = count >= 0.5 * CELL**3
     key = full.tobytes()
+    if EXACT:
+        if key not in _solves:
+            g, d, cells = operators(full)
+            _solves.clear()
+            _solves[key] = (g @ np.linalg.pinv(d @ g) @ d if len(cells) else None, cells)
+        projector, _ = _solves[key]
+        if projector is None:
+            return
+        correction = (projector @ u.reshape(-1)).reshape(N, 3)
+        v[fluid] -= BETA * correction[cell]
+        return
     if key not in _solves:
         a, cells = laplacian(full)
         _solves.clear()
