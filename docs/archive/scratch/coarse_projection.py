@@ -30,6 +30,7 @@ H = CELL * float(os.environ["COARSE_D"])
 DIMS = np.maximum(np.ceil(BOX / H - 1e-9).astype(int), 1)
 N = int(np.prod(DIMS))
 EXACT = os.environ.get("COARSE_EXACT", "0") == "1"
+SURFACE = os.environ.get("COARSE_SURFACE", "0") == "1"
 _solves = {}
 
 
@@ -64,8 +65,12 @@ def operators(full: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return g, d, cells
 
 
-def laplacian(full: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The Laplacian over the full cells (zero potential in the others, none through the walls) and those cells."""
+def laplacian(full: np.ndarray, fill: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The Laplacian over the full cells (zero potential in the others, none through the walls) and those cells.
+
+    ``COARSE_SURFACE=1``: the zero of the potential is placed at the free surface a partly filled
+    neighbour holds, ``fill + 1/2`` cells from the full cell's centre (ghost fluid), not at its centre.
+    """
     index = -np.ones(N, dtype=int)
     cells = np.nonzero(full)[0]
     index[cells] = np.arange(len(cells))
@@ -77,10 +82,14 @@ def laplacian(full: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
                 nb[axis] += side
                 if nb[axis] < 0 or nb[axis] >= DIMS[axis]:
                     continue
-                a[row, row] -= 1.0
                 k = index[np.ravel_multi_index(nb, DIMS)]
                 if k >= 0:
+                    a[row, row] -= 1.0
                     a[row, k] += 1.0
+                elif SURFACE:
+                    a[row, row] -= 1.0 / (np.clip(fill[np.ravel_multi_index(nb, DIMS)], 0.0, 0.5) + 0.5)
+                else:
+                    a[row, row] -= 1.0
     return a / H**2, cells
 
 
@@ -112,8 +121,11 @@ def project(q: np.ndarray, v: np.ndarray, fluid: np.ndarray) -> None:
         correction = (projector @ u.reshape(-1)).reshape(N, 3)
         v[fluid] -= BETA * correction[cell]
         return
+    fill = count / CELL**3
+    if SURFACE:
+        key = np.round(np.minimum(fill, 0.5) * 8.0).astype(np.int8).tobytes()
     if key not in _solves:
-        a, cells = laplacian(full)
+        a, cells = laplacian(full, fill)
         _solves.clear()
         _solves[key] = (np.linalg.inv(a) if len(cells) else None, cells)
     inverse, cells = _solves[key]
