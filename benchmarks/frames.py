@@ -142,13 +142,14 @@ def solver_record(solver) -> dict:
     return {"iterations": solver.iterations, **{name: getattr(solver, name) for name in SOLVER_KEYWORDS}}
 
 
-def contact_frames(model, args, spacing: float, device) -> tuple:
+def contact_frames(model, args, spacing: float, device, damping: bool = True) -> tuple:
     """The solver at ``args``' keywords and :class:`Frames` stepping ``model`` with contacts every substep.
 
     The collision pipeline finds particle-shape contacts within half a ``spacing`` [m] (room for two per
-    particle). Returns ``(solver, frames)``; ``frames.states[0]`` holds the current state.
+    particle). ``damping`` as in :func:`solver_keywords`. Returns ``(solver, frames)``;
+    ``frames.states[0]`` holds the current state.
     """
-    solver = newton.solvers.SolverXPBD(model, **solver_keywords(args, spacing))
+    solver = newton.solvers.SolverXPBD(model, **solver_keywords(args, spacing, damping=damping))
     pipeline = newton.CollisionPipeline(
         model, soft_contact_max=2 * model.particle_count, soft_contact_gap=0.5 * spacing
     )

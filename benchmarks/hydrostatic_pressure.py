@@ -37,11 +37,10 @@ import time
 import numpy as np
 import warp as wp
 
-import newton
 from newton._src.solvers.xpbd.fluid.calibration import lattice_density, rest_lattice, wall_density_tables
 from newton.examples.fluid.progress import track
 
-from .frames import Frames, add_solver_arguments, run_on_device, solver_keywords
+from .frames import add_solver_arguments, contact_frames, run_on_device
 from .rest_column import GRAVITY, SPACING, build
 from .run_record import write_record
 
@@ -80,12 +79,9 @@ def wall_gradient(solver, mass: float, d: float, distance: np.ndarray) -> np.nda
 def run(args, device) -> dict:
     d = SPACING
     model = build(args.n, args.layers, device)
-    solver = newton.solvers.SolverXPBD(model, **solver_keywords(args, d, damping=False))
+    solver, frame = contact_frames(model, args, d, device, damping=False)
     damping = solver.fluid_nonaffine_damping if args.nonaffine_damping is None else args.nonaffine_damping
-    pipeline = newton.CollisionPipeline(model, soft_contact_max=2 * model.particle_count, soft_contact_gap=0.5 * d)
-    contacts = pipeline.contacts()
-    states = [model.state(), model.state()]
-    frame = Frames(solver, pipeline, contacts, states, args.substeps, device)
+    states = frame.states
     mass = float(model.particle_mass.numpy()[0])
     start = time.perf_counter()
     solver.fluid_nonaffine_damping = args.settle_damping

@@ -38,7 +38,7 @@ from newton.examples.fluid.common import add_closed_box, add_water_lattice
 from newton.examples.fluid.progress import track
 
 from .dam_break import poly6_density
-from .frames import add_solver_arguments, solver_keywords, solver_record
+from .frames import add_solver_arguments, contact_frames, solver_record
 from .run_record import write_record
 
 SPACING = 0.05  # [m]
@@ -102,17 +102,8 @@ def interior_density(q: np.ndarray, d: float, h: float) -> dict:
 def run(args, device) -> dict:
     d = SPACING
     model = build(args.n, args.layers, device)
-    solver = newton.solvers.SolverXPBD(model, **solver_keywords(args, d))
-    pipeline = newton.CollisionPipeline(model, soft_contact_max=2 * model.particle_count, soft_contact_gap=0.5 * d)
-    contacts = pipeline.contacts()
-    states = [model.state(), model.state()]
-    dt = 1.0 / 60.0 / args.substeps
-
-    def frame():
-        for _ in range(args.substeps):
-            pipeline.collide(states[0], contacts)
-            solver.step(states[0], states[1], None, contacts, dt)
-            states[0], states[1] = states[1], states[0]
+    solver, frame = contact_frames(model, args, d, device)
+    states = frame.states
 
     settle, measure = round(args.settle * 60.0), round(args.measure * 60.0)
     start = time.perf_counter()

@@ -54,7 +54,6 @@ def operators(full: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
                     # beyond a wall: the potential is the cell's own, the normal velocity its opposite
                     if index[c] >= 0:
                         g[3 * c + axis, index[c]] += side / (2.0 * H)
-                    if index[c] >= 0:
                         d[index[c], 3 * c + axis] -= side / (2.0 * H)
                     continue
                 k = np.ravel_multi_index(nb, DIMS)
