@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/archive/performance_notebook.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|collision|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|collision|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
 set -u
 out=${1:?output folder}; shift
 export PYTHONUNBUFFERED=1
@@ -43,6 +43,27 @@ for what in "$@"; do
         tail -2 "$out/floating_box_series_${tag}_${gpu}.txt"
         [ -n "$patch" ] && git apply -R "docs/archive/patches/$patch.patch"
       done ;;
+    placement)
+      # over-packed placements moved apart before they move (docs/archive/validation_notebook.md "Over-packed starts"):
+      # the packed start at three packings and at 100k (the first frame's time holds the relaxation), the cost where
+      # nothing is packed (the 100k dam break with the commit that added it and without), and the CUDA tests
+      for f in 0.5 0.7 0.9; do
+        python3 -m benchmarks packed_start --device cuda:0 --fraction $f --json "$out/packed_start_${f}_${gpu}.json" 2>&1 | grep -A1 '^device'
+      done
+      python3 -m benchmarks packed_start --device cuda:0 --block 50 --layers 40 --height 8 --seconds 0.5 --fraction 0.7 \
+        --json "$out/packed_start_100k_0.7_${gpu}.json" 2>&1 | grep -A1 '^device'
+      placement=$(git log --diff-filter=A --format=%h -1 -- newton/_src/solvers/xpbd/fluid/placement.py)
+      git diff "$placement~1" "$placement" -- newton/_src > /tmp/placement.patch
+      for round in 1 2; do
+        for tag in without with; do
+          [ $tag = without ] && git apply -R /tmp/placement.patch
+          echo "== 100k dam break $tag placement check, round $round"
+          python3 -m benchmarks dam_break --trials 3 --json "$out/dam_break_100k_${tag}_placement_${round}_${gpu}.json" 2>&1 | grep -A1 "^device"
+          [ $tag = without ] && git apply /tmp/placement.patch
+        done
+      done
+      python3 -m pytest -q -k cuda newton/tests/test_fluid_placement.py newton/tests/test_fluid_stress.py \
+        newton/tests/test_fluid_reset.py 2>&1 | tail -5 ;;
     collision)
       # the cost of continuous collision at the 100k dam break (docs/archive/performance_notebook.md "Continuous collision")
       for v in "" "--no-continuous-collision"; do

@@ -78,9 +78,10 @@ def fluid_diagnostics(self, state) -> dict:
     (``RuntimeWarning``) when the mean compression exceeds 5 %, more than the density solve holds
     (a fluid too deep for its iterations and substeps), once until it falls below again. What
     happened between two calls is kept on the device and reported at the next one, however short
-    it lasted: particle substeps that ended their density solve more than 10 % compressed (an
-    over-packed start, an impact harder than the iterations hold), substeps faster than one rest
-    distance, and particles recovered from non-finite values each warn once with their count.
+    it lasted: fluid placed over-packed (relaxed by the step after its placement), particle substeps
+    that ended their density solve more than 10 % compressed (an impact harder than the iterations
+    hold), substeps faster than one rest distance, and particles recovered from non-finite values
+    each warn once with their count.
 
     Args:
         state: The state to measure, usually the ``state_out`` of the last step.
@@ -101,7 +102,9 @@ def fluid_diagnostics(self, state) -> dict:
         ``soft_contacts_dropped`` (particle-shape contacts the last step's collision found beyond the
         ``Contacts`` buffer's ``soft_contact_max``, so dropped with the walls they stand for; warns),
         ``shape_entries_stopped`` (particle substeps whose path continuous collision stopped at a static or
-        kinematic shape, in all).
+        kinematic shape, in all), ``overpacked_placed`` (fluid particles placed more than 10 % above rest
+        density or inside a static or kinematic shape since the last call, which the step after their
+        placement moved apart, positions only; warns).
         Empty for a model without fluid.
     """
     if self._fluid is None:
@@ -123,7 +126,11 @@ def reset(self, state, world_mask=None, flags=None, *, fluid_source=None) -> Non
     The whole-model counters (``fluid_nonfinite_count``, ``fluid_fast_count``, the compression peaks
     that :meth:`fluid_diagnostics` reports) keep counting. Device work only, no allocation or
     synchronisation: it can be captured in a CUDA graph, and the mask's contents may change between
-    replays.
+    replays. Positions restored from a ``fluid_source`` (or from initial particles that were placed
+    over-packed) are checked by the next :meth:`step`: a restored world whose fluid is more than 10 %
+    above rest density, or inside a static or kinematic shape, is first moved apart, positions only
+    (see :doc:`formulation`, "Over-packed placements"); that check costs the next step about a frame's
+    neighbour builds, also inside a graph.
 
     Args:
         state: The state to reset (modified in place), the one the next :meth:`step` reads.

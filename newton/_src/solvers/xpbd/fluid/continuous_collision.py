@@ -337,6 +337,44 @@ def stop_inward(v: wp.vec3, normal: wp.vec3, v_wall: wp.vec3):
     return v
 
 
+@wp.func
+def shape_distance(shape_type: int, scale: wp.vec3, p: wp.vec3):
+    """Signed distance [m] (xyz: outward normal in the shape frame, w: distance) of local point ``p``.
+
+    Planes, spheres, capsules and boxes; any other shape reads as far away (1e10 m).
+    """
+    if shape_type == GeoType.PLANE:
+        return wp.vec4(0.0, 0.0, 1.0, p[2])
+    if shape_type == GeoType.SPHERE:
+        r = wp.length(p)
+        n = wp.where(r > 0.0, p / wp.max(r, 1.0e-12), wp.vec3(0.0, 0.0, 1.0))
+        return wp.vec4(n[0], n[1], n[2], r - scale[0])
+    if shape_type == GeoType.CAPSULE:
+        axis_z = wp.clamp(p[2], -scale[1], scale[1])
+        radial = p - wp.vec3(0.0, 0.0, axis_z)
+        r = wp.length(radial)
+        n = wp.where(r > 0.0, radial / wp.max(r, 1.0e-12), wp.vec3(1.0, 0.0, 0.0))
+        return wp.vec4(n[0], n[1], n[2], r - scale[0])
+    if shape_type == GeoType.BOX:
+        q = wp.vec3(wp.abs(p[0]) - scale[0], wp.abs(p[1]) - scale[1], wp.abs(p[2]) - scale[2])
+        outside = wp.vec3(wp.max(q[0], 0.0), wp.max(q[1], 0.0), wp.max(q[2], 0.0))
+        out_len = wp.length(outside)
+        if out_len > 0.0:
+            n = wp.vec3(wp.sign(p[0]) * outside[0], wp.sign(p[1]) * outside[1], wp.sign(p[2]) * outside[2]) / out_len
+            return wp.vec4(n[0], n[1], n[2], out_len)
+        # inside: the nearest face
+        n = wp.vec3(wp.sign(p[0]), 0.0, 0.0)
+        depth = q[0]
+        if q[1] > depth:
+            n = wp.vec3(0.0, wp.sign(p[1]), 0.0)
+            depth = q[1]
+        if q[2] > depth:
+            n = wp.vec3(0.0, 0.0, wp.sign(p[2]))
+            depth = q[2]
+        return wp.vec4(n[0], n[1], n[2], depth)
+    return wp.vec4(0.0, 0.0, 1.0, 1.0e10)
+
+
 @wp.kernel
 def stop_fluid_paths_at_shapes(
     shapes: GuardedShapes,
@@ -542,6 +580,12 @@ class ContinuousCollision:
         s = self.shapes
         s.body_q, s.body_qd = body_q, body_qd
         wp.launch(bound_guarded_shapes, dim=len(self._guarded), inputs=[s, self._guarded], device=self.model.device)
+
+    def hold(self, body_q, body_qd) -> None:
+        """Put the shapes where ``body_q`` has them, not moving: for moves that take no time (see :mod:`.placement`)."""
+        self.shapes.dt = 0.0
+        if self.kinematic:
+            self._bound(body_q, body_qd)
 
     def apply(
         self, fluid_particle, slot_of_particle, slot_xm, sorted_v, particle_q_start, state_out, dt: float

@@ -12,6 +12,7 @@ import numpy as np
 import warp as wp
 
 from .density_constraint import COMPRESSION_BINS, PEAK_COMPRESSION
+from .placement import PLACEMENT_COMPRESSION, PLACEMENT_TOLERANCE, RELAXATION_ROUNDS
 from .sph import FluidParams, FluidSlots
 
 #: mean compression max(rho/rho0 - 1, 0) above which :meth:`FluidSolver.diagnostics` warns that the density
@@ -91,6 +92,9 @@ class FluidReports:
         #: density of every particle at the state of the last summary [kg/m^3] (0 for non-fluid)
         self.particle_density = wp.zeros(particle_count, dtype=float)
         self.summary = wp.zeros(_SUMMARY_SIZE, dtype=float)
+        #: fluid particles placed past PLACEMENT_COMPRESSION (0), their largest compression (1) and the worlds
+        #: left packed by the relaxation's last round (2), since the last report (see :mod:`.placement`)
+        self.overpacked = wp.zeros(3, dtype=float)
         self._fast_reported = 0
         self._nonfinite_reported = 0
         self._compression_reported = False
@@ -145,6 +149,28 @@ class FluidReports:
             )
             self.peaks.zero_()
         return count, peak
+
+    def report_overpacked(self) -> int:
+        """Fluid particles placed over-packed since the last report, which the step moved apart; warns."""
+        v = self.overpacked.numpy()
+        count, peak, unfinished = int(v[0]), float(v[1]), int(v[2])
+        if count:
+            outcome = (
+                f"to within {100.0 * PLACEMENT_TOLERANCE:.0f} % of rest density"
+                if unfinished == 0
+                else f"but {unfinished} world(s) were still packed past {100.0 * PLACEMENT_TOLERANCE:.0f} % after "
+                f"{RELAXATION_ROUNDS} rounds (the rest springs apart with velocity)"
+            )
+            warnings.warn(
+                f"{count} fluid particles were placed more than {100.0 * PLACEMENT_COMPRESSION:.0f} % above rest "
+                f"density (peak {100.0 * peak:.0f} %: an over-packed start, closer than the rest spacing or "
+                "overlapping): the step after their placement moved their worlds' fluid apart, positions only "
+                f"(no velocity), {outcome}",
+                RuntimeWarning,
+                stacklevel=3,
+            )
+            self.overpacked.zero_()
+        return count
 
     def report_recoveries(self) -> int:
         """Fluid particles recovered from non-finite values in all; warns when the count grew since the last report."""

@@ -29,7 +29,7 @@ so the passes can be captured in a graph. Nothing here feeds back into the fluid
 
 import warp as wp
 
-from ....geometry import GeoType
+from .continuous_collision import shape_distance
 from .neighbors import _NO_WORLD, fluid_cell, fluid_cell_hash, fluid_cell_range
 from .sph import FluidParams, FluidSlots, neighbor_sum
 
@@ -172,41 +172,6 @@ def emit_diffuse_particles(
     buffers.world[slot] = particle_world[pi]
 
 
-@wp.func
-def _shape_distance(shape_type: int, scale: wp.vec3, p: wp.vec3):
-    """Signed distance [m] (xyz: outward normal in the shape frame, w: distance) of local point ``p``."""
-    if shape_type == GeoType.PLANE:
-        return wp.vec4(0.0, 0.0, 1.0, p[2])
-    if shape_type == GeoType.SPHERE:
-        r = wp.length(p)
-        n = wp.where(r > 0.0, p / wp.max(r, 1.0e-12), wp.vec3(0.0, 0.0, 1.0))
-        return wp.vec4(n[0], n[1], n[2], r - scale[0])
-    if shape_type == GeoType.CAPSULE:
-        axis_z = wp.clamp(p[2], -scale[1], scale[1])
-        radial = p - wp.vec3(0.0, 0.0, axis_z)
-        r = wp.length(radial)
-        n = wp.where(r > 0.0, radial / wp.max(r, 1.0e-12), wp.vec3(1.0, 0.0, 0.0))
-        return wp.vec4(n[0], n[1], n[2], r - scale[0])
-    if shape_type == GeoType.BOX:
-        q = wp.vec3(wp.abs(p[0]) - scale[0], wp.abs(p[1]) - scale[1], wp.abs(p[2]) - scale[2])
-        outside = wp.vec3(wp.max(q[0], 0.0), wp.max(q[1], 0.0), wp.max(q[2], 0.0))
-        out_len = wp.length(outside)
-        if out_len > 0.0:
-            n = wp.vec3(wp.sign(p[0]) * outside[0], wp.sign(p[1]) * outside[1], wp.sign(p[2]) * outside[2]) / out_len
-            return wp.vec4(n[0], n[1], n[2], out_len)
-        # inside: the nearest face
-        n = wp.vec3(wp.sign(p[0]), 0.0, 0.0)
-        depth = q[0]
-        if q[1] > depth:
-            n = wp.vec3(0.0, wp.sign(p[1]), 0.0)
-            depth = q[1]
-        if q[2] > depth:
-            n = wp.vec3(0.0, 0.0, wp.sign(p[2]))
-            depth = q[2]
-        return wp.vec4(n[0], n[1], n[2], depth)
-    return wp.vec4(0.0, 0.0, 1.0, 1.0e10)
-
-
 @wp.kernel
 def advect_diffuse_particles(
     params: wp.array[FluidParams],
@@ -301,7 +266,7 @@ def advect_diffuse_particles(
             if b >= 0:
                 xf = body_q[b] * shape_transform[s]
             local = wp.transform_point(wp.transform_inverse(xf), x)
-            hit = _shape_distance(shape_type[s], shape_scale[s], local)
+            hit = shape_distance(shape_type[s], shape_scale[s], local)
             if hit[3] < radius:
                 trapped = int(1)
                 if push_round < 2:

@@ -35,7 +35,7 @@ from .config import (
     free_memory,
     real_in_range,
 )
-from .continuous_collision import ContinuousCollision, still_shapes
+from .continuous_collision import ContinuousCollision, GuardedShapes, still_shapes
 from .density_constraint import (
     APPLY_ADVANCE,
     APPLY_AS_XPBD,
@@ -56,6 +56,18 @@ from .diffuse import (
     emit_diffuse_particles,
 )
 from .neighbors import FluidNeighborSearch, neighbor_list_layout
+from .placement import (
+    RELAXATION_PASSES,
+    RELAXATION_ROUNDS,
+    clear_placement,
+    find_overpacked_worlds,
+    find_packed_slots,
+    keep_packed_worlds_relaxing,
+    list_shape_walls,
+    mark_placed_worlds,
+    refresh_relaxed_contacts,
+    relax_overpacked_fluid,
+)
 from .render_particles import compute_fluid_render_particles, reset_render_particles
 from .reset import reset_diffuse_worlds, reset_fluid_worlds
 from .schedule import density_schedule
@@ -232,6 +244,16 @@ class FluidSolver:
             self._no_body_flags = wp.zeros(1, dtype=wp.int32)
         # the fluid's paths kept out of static and kinematic shapes (None: off, or no such shape)
         self.continuous_collision = ContinuousCollision.build(model) if config.fluid_continuous_collision else None
+        # over-packed placements (see :mod:`.placement`): per world (the global world last) whether a
+        # placement touched it since the last step and whether it relaxes; the guard of their moves
+        with wp.ScopedDevice(self.device):
+            rows = int(model.world_count) + 1
+            self.placed = wp.ones(rows, dtype=wp.int32)
+            self.relaxing = wp.zeros(rows, dtype=wp.int32)
+            self.any_relaxing = wp.zeros(1, dtype=wp.int32)
+            self.placement_packed = wp.zeros(rows, dtype=wp.int32)
+            self.placement_rounds_left = wp.full(1, RELAXATION_ROUNDS, dtype=wp.int32)
+        self.placement_guard = self.continuous_collision or ContinuousCollision.build(model)
         # the second stream (see FluidTuning.concurrent_passes), and whether work on it has not been joined yet
         concurrent = self.device.is_cuda and self.tuning.concurrent_passes
         self.side_stream = wp.Stream(self.device) if concurrent else None
@@ -241,6 +263,10 @@ class FluidSolver:
         #: how many density passes an iteration runs, and who decides (:mod:`.schedule`)
         self.schedule = density_schedule(self)
         self.update_params()
+        #: whether the model's initial fluid is over-packed (a reset that restores it relaxes it again)
+        self.initial_overpacked = self._find_overpacked(model.particle_q)
+        #: whether the next step checks the placed worlds (and relaxes the over-packed ones)
+        self.placement_pending = self.initial_overpacked
 
     @property
     def rest_density(self) -> float:
@@ -636,6 +662,161 @@ class FluidSolver:
             device=self.device,
         )
 
+    # --- over-packed placements --------------------------------------------------------------------
+
+    def _find_overpacked(self, particle_q: wp.array) -> bool:
+        """Whether any placed world's fluid at ``particle_q`` is over-packed (synchronises; for the constructor)."""
+        m = self.model
+        shapes = self._hold_placement_guard(m.body_q, m.body_qd)
+        self.build_neighborhood(particle_q)
+        self._check_placed_worlds(shapes)
+        self.slot_content = SlotContent.STALE
+        found = bool(self.any_relaxing.numpy()[0])
+        # the step finds them again and counts them for the report; without them no world waits for a check
+        self.relaxing.zero_()
+        self.any_relaxing.zero_()
+        self.reports.overpacked.zero_()
+        if not found:
+            self.placed.zero_()
+        return found
+
+    def _hold_placement_guard(self, body_q, body_qd) -> GuardedShapes:
+        """The shapes the relaxation keeps the fluid out of, where ``body_q`` has them (an empty set without any)."""
+        guard = self.placement_guard
+        if guard is None:
+            return GuardedShapes()
+        guard.hold(body_q, body_qd)
+        return guard.shapes
+
+    def _list_shape_walls(self, shapes: GuardedShapes, listed: wp.array, any_listed: wp.array) -> None:
+        if self.placement_guard is None:
+            return
+        m = self.model
+        wp.launch(
+            list_shape_walls,
+            dim=self.fluid_count,
+            inputs=[self.params, self.slots, m.particle_world, int(m.world_count), listed, any_listed, shapes],
+            device=self.device,
+        )
+
+    def _check_placed_worlds(self, shapes: GuardedShapes) -> None:
+        """After a build: mark the placed worlds whose fluid is over-packed or inside a shape as relaxing."""
+        # (the fluid's own sum: a lattice at rest reads rest density however close to a wall it was placed)
+        self.evaluate_constraint(self.always_active)
+        self._list_shape_walls(shapes, self.placed, self.always_active)
+        m = self.model
+        wp.launch(
+            find_overpacked_worlds,
+            dim=self.fluid_count,
+            inputs=[self.search.slots, self.lambda_rho, m.particle_world, int(m.world_count), self.placed],
+            outputs=[self.relaxing, self.any_relaxing, self.reports.overpacked],
+            device=self.device,
+        )
+
+    def relax_placement(self, state) -> None:
+        """Move the over-packed fluid of the worlds placed since the last step apart, positions only (:mod:`.placement`).
+
+        Nothing (no launch) unless the construction found the initial fluid over-packed or a reset
+        restored positions since the last step. Outside a graph every round is launched (no
+        synchronisation); in a graph capture the rounds are a conditional loop that stops once every
+        world is relaxed.
+        """
+        if not self.placement_pending:
+            return
+        self.placement_pending = False
+        m = self.model
+        shapes = self._hold_placement_guard(state.body_q, state.body_qd)
+        self.build_neighborhood(state.particle_q)
+        # (lists the walls of every placed world, the relaxing ones among them)
+        self._check_placed_worlds(shapes)
+        if self.device.is_capturing:
+            wp.capture_while(self.any_relaxing, self._relaxation_round, state=state, shapes=shapes, first=False)
+        else:
+            for r in range(RELAXATION_ROUNDS + 1):
+                self._relaxation_round(state, shapes, first=r == 0)
+        c = self.contacts
+        if c is not None and getattr(c, "soft_contact_count", None) is not None and c.soft_contact_max:
+            wp.launch(
+                refresh_relaxed_contacts,
+                dim=c.soft_contact_max,
+                inputs=[
+                    c.soft_contact_count,
+                    c.soft_contact_particle,
+                    c.soft_contact_shape,
+                    c.soft_contact_max,
+                    m.particle_flags,
+                    m.particle_world,
+                    state.particle_q,
+                    int(m.world_count),
+                    self.placed,
+                    m.shape_type,
+                    m.shape_scale,
+                    m.shape_transform,
+                    m.shape_body,
+                    state.body_q if state.body_q is not None else self._no_bodies,
+                ],
+                outputs=[c.soft_contact_body_pos, c.soft_contact_normal],
+                device=self.device,
+            )
+        wp.launch(
+            clear_placement,
+            dim=self.placed.shape[0],
+            inputs=[RELAXATION_ROUNDS],
+            outputs=[self.placed, self.relaxing, self.any_relaxing, self.placement_rounds_left],
+            device=self.device,
+        )
+        self.slot_content = SlotContent.STALE
+
+    def _relaxation_round(self, state, shapes: GuardedShapes, first: bool) -> None:
+        """One round of the relaxation: a neighbour build (but in the first), the check that stops relaxed worlds, passes."""
+        m = self.model
+        rows = int(m.world_count)
+        if not first:
+            self.build_neighborhood(state.particle_q)
+            self._list_shape_walls(shapes, self.relaxing, self.any_relaxing)
+        self.evaluate_constraint(self.any_relaxing)
+        wp.launch(
+            find_packed_slots,
+            dim=self.fluid_count,
+            inputs=[self.slots, self.lambda_rho, m.particle_world, rows, self.relaxing, self.any_relaxing],
+            outputs=[self.placement_packed],
+            device=self.device,
+        )
+        wp.launch(
+            keep_packed_worlds_relaxing,
+            dim=1,
+            inputs=[self.placement_packed],
+            outputs=[self.relaxing, self.any_relaxing, self.placement_rounds_left, self.reports.overpacked],
+            device=self.device,
+        )
+        for k in range(RELAXATION_PASSES):
+            if k > 0:
+                self.evaluate_constraint(self.any_relaxing)
+            wp.launch(
+                relax_overpacked_fluid,
+                dim=self.fluid_count,
+                inputs=[
+                    self.params,
+                    self.slots,
+                    self.lambda_rho,
+                    self.wall_grad,
+                    self.fluid_particle,
+                    self.search.slot_of_particle,
+                    m.particle_flags,
+                    m.particle_world,
+                    m.particle_radius,
+                    m.particle_inv_mass,
+                    rows,
+                    self.relaxing,
+                    self.any_relaxing,
+                    shapes,
+                    int(self.placement_guard is not None),
+                ],
+                outputs=[state.particle_q, self.last_finite_q, self._slot_views[1 - self.current].xm],
+                device=self.device,
+            )
+            self.swap_slot_buffers()
+
     # --- render particles ------------------------------------------------------------------------
 
     def update_render_particles(
@@ -706,6 +887,16 @@ class FluidSolver:
             outputs=[state.particle_q, state.particle_qd, self.last_finite_q, self.particle_lambda],
             device=self.device,
         )
+        if restore_q and (source is not None or self.initial_overpacked):
+            # the restored worlds are checked for an over-packed placement at the next step
+            wp.launch(
+                mark_placed_worlds,
+                dim=self.placed.shape[0],
+                inputs=[mask, use_mask],
+                outputs=[self.placed],
+                device=self.device,
+            )
+            self.placement_pending = True
         if self.diffuse is not None:
             b = self.diffuse
             wp.launch(
@@ -755,6 +946,7 @@ class FluidSolver:
             "density_subiterations": int(self.subiterations_total.numpy()[0]),
             "soft_contacts_dropped": dropped,
             "shape_entries_stopped": self._stopped_entries(),
+            "overpacked_placed": r.report_overpacked(),
         }
 
     def _stopped_entries(self) -> int:

@@ -400,6 +400,7 @@ def activate(xpbd_module, fluid_kwargs: dict, fluid_doc: str, make_fluid, reset_
         if self._fluid is None:
             return upstream_step(self, state_in, state_out, control, contacts, dt, **kwargs)
         self._fluid.contacts = contacts
+        self._fluid.relax_placement(state_in)
         all_fluid = self._fluid.fluid_count == self.model.particle_count
         with fluid_particle_contacts(module, self.model, all_fluid):
             upstream_step(self, state_in, state_out, control, contacts, dt, **kwargs)

@@ -1,0 +1,221 @@
+# SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
+# SPDX-License-Identifier: Apache-2.0
+
+"""Over-packed placements: fluid placed closer than its rest spacing, overlapping or inside a shape (issue #23, item 3).
+
+The step after the placement moves it apart, positions only (``newton/_src/solvers/xpbd/fluid/placement.py``);
+before, PBF turned the packing's correction into velocity (``benchmarks/packed_start.py``).
+"""
+
+import unittest
+import warnings
+
+import numpy as np
+import warp as wp
+from newton.tests.unittest_utils import add_function_test, get_test_devices
+
+import newton
+from newton.examples.fluid.common import add_closed_box
+from newton.tests.test_solver_xpbd_fluid import D, Sim, add_block
+
+BLOCK = (6, 6, 5)  # particles of the placed block
+EDGE = BLOCK[0] * D  # the closed box is as wide as the block at its rest spacing
+HEIGHT = 1.5  # [m]
+
+
+def add_packed_block(builder, fraction, vel=(0.0, 0.0, 0.0)):
+    """``BLOCK`` placed at ``fraction`` of the rest spacing, centred on the floor of ``[0, EDGE]^2``."""
+    s = fraction * D
+    corner = 0.5 * (EDGE - BLOCK[0] * s) + 0.5 * s
+    add_block(builder, BLOCK, origin=(corner, corner, 0.5 * s), spacing=s, vel=vel, jitter=0.01 * D)
+
+
+def packed_box(device, fraction):
+    builder = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))
+    add_packed_block(builder, fraction)
+    add_closed_box(builder, EDGE, HEIGHT, thickness=2.0 * D)
+    model = builder.finalize(device=device)
+    model.soft_contact_mu = 0.0
+    return model
+
+
+def two_worlds(device, fraction0):
+    """World 0: the block at ``fraction0`` of its spacing; world 1: at rest spacing, thrown at a wall."""
+    builder = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))
+    for w, fraction in enumerate((fraction0, 1.0)):
+        world = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))
+        add_packed_block(world, fraction, vel=(0.0, 0.0, 0.0) if w == 0 else (1.5, 0.5, 0.0))
+        add_closed_box(world, EDGE, HEIGHT, thickness=2.0 * D)
+        builder.add_world(world)
+    model = builder.finalize(device=device)
+    model.soft_contact_mu = 0.0
+    return model
+
+
+def report(sim):
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        stats = sim.solver.fluid_diagnostics(sim.state_0)
+    return stats, [str(w.message) for w in caught]
+
+
+def world_of(sim, array, w):
+    return array.numpy()[sim.model.particle_world.numpy() == w].astype(np.float64)
+
+
+def assert_same(test, device, a, b):
+    """Bitwise on the CPU; on CUDA the contacts' atomic sums reorder, so within float noise of a short run."""
+    if device.is_cuda:
+        np.testing.assert_allclose(a, b, atol=2.0e-3)
+    else:
+        np.testing.assert_array_equal(a, b)
+
+
+def test_packed_start_rises_no_more_than_five_spacings(test, device):
+    for fraction in (0.5, 0.9):
+        with test.subTest(fraction=fraction):
+            sim = Sim(packed_box(device, fraction), substeps=8, contacts=True)
+            test.assertTrue(sim.solver._fluid.initial_overpacked)
+            sim.step(1)
+            # the packing was undone without velocity: the first frame is a fall, not a burst
+            # (before: 22-136 m/s in benchmarks/packed_start.py)
+            test.assertLess(np.linalg.norm(sim.qd(), axis=1).max(), 1.5)
+            highest = sim.q()[:, 2].max()
+            for _ in range(59):
+                sim.step(1)
+                highest = max(highest, sim.q()[:, 2].max())
+            q = sim.q()
+            test.assertTrue(np.isfinite(q).all())
+            # none leaves the box, and none rose more than 5 spacings above the level the fluid settles to
+            test.assertGreater(q.min(), -D)
+            test.assertLess(q[:, :2].max(), EDGE + D)
+            level = np.percentile(q[:, 2], 99) + 0.5 * D
+            test.assertLess(highest - level, 5.0 * D)
+            stats, messages = report(sim)
+            test.assertGreater(stats["overpacked_placed"], 0)
+            named = [m for m in messages if "placed more than 10 % above rest density" in m]
+            test.assertEqual(len(named), 1, messages)
+            test.assertIn("within 1 % of rest density", named[0])
+
+
+def test_relaxation_leaves_other_worlds_untouched(test, device):
+    packed, plain = Sim(two_worlds(device, 0.6), contacts=True), Sim(two_worlds(device, 1.0), contacts=True)
+    test.assertTrue(packed.solver._fluid.initial_overpacked)
+    test.assertFalse(plain.solver._fluid.initial_overpacked)
+    for _ in range(10):
+        packed.step(1)
+        plain.step(1)
+        for array in ("particle_q", "particle_qd"):
+            assert_same(
+                test,
+                device,
+                world_of(packed, getattr(packed.state_0, array), 1),
+                world_of(plain, getattr(plain.state_0, array), 1),
+            )
+    # the packed world did spread (at 0.6 the block filled 22 % of the box's floor)
+    q0 = world_of(packed, packed.state_0.particle_q, 0)
+    test.assertGreater(np.ptp(q0[:, 0]) * np.ptp(q0[:, 1]), 0.6 * EDGE * EDGE)
+
+
+def squeezed(sim, w, factor):
+    """A copy of the current state with world ``w``'s fluid squeezed about its centroid by ``factor``."""
+    state = sim.model.state()
+    q = sim.q()
+    sel = sim.model.particle_world.numpy() == w
+    centre = q[sel].mean(axis=0)
+    q[sel] = centre + factor * (q[sel] - centre)
+    state.particle_q.assign(q.astype(np.float32))
+    state.particle_qd.zero_()
+    return state
+
+
+def world_mask(device, *worlds):
+    m = np.zeros(3, dtype=bool)
+    m[list(worlds)] = True
+    return wp.array(m, dtype=wp.bool, device=device)
+
+
+def test_reset_to_a_packed_state_relaxes_that_world(test, device):
+    sim, plain = Sim(two_worlds(device, 1.0), contacts=True), Sim(two_worlds(device, 1.0), contacts=True)
+    sim.step(10)
+    plain.step(10)
+    source = squeezed(sim, 0, 0.6)
+    # a reset from the initial particles (not over-packed) asks for no check
+    sim.solver.reset(sim.state_0, world_mask(device, 1), newton.StateFlags.PARTICLE_QD)
+    test.assertFalse(sim.solver._fluid.placement_pending)
+    sim.solver.reset(sim.state_0, world_mask(device, 0), fluid_source=source)
+    test.assertTrue(sim.solver._fluid.placement_pending)
+    # (the velocity reset of world 1 is matched in the run without the packed world)
+    plain.solver.reset(plain.state_0, world_mask(device, 1), newton.StateFlags.PARTICLE_QD)
+    sim.step(1)
+    plain.step(1)
+    test.assertLess(np.linalg.norm(world_of(sim, sim.state_0.particle_qd, 0), axis=1).max(), 1.0)
+    assert_same(test, device, world_of(sim, sim.state_0.particle_q, 1), world_of(plain, plain.state_0.particle_q, 1))
+    stats, messages = report(sim)
+    test.assertEqual(stats["overpacked_placed"], np.prod(BLOCK))
+    test.assertTrue(any("placed more than 10 %" in m for m in messages), messages)
+
+
+def test_fluid_placed_inside_a_static_shape_moves_out(test, device):
+    builder = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))
+    add_packed_block(builder, 1.0)
+    add_closed_box(builder, EDGE, HEIGHT, thickness=2.0 * D)
+    # a static box in the middle of the block: 2 x 2 x 3 of its particles start inside it
+    cfg = newton.ModelBuilder.ShapeConfig(mu=0.0)
+    centre, half = np.array([0.5 * EDGE, 0.5 * EDGE, 0.25]), 0.12
+    builder.add_shape_box(
+        -1, xform=wp.transform(wp.vec3(*centre), wp.quat_identity()), hx=half, hy=half, hz=half, cfg=cfg
+    )
+    model = builder.finalize(device=device)
+    model.soft_contact_mu = 0.0
+    q0 = model.particle_q.numpy()
+    test.assertEqual(int(np.all(np.abs(q0 - centre) < half, axis=1).sum()), 12)
+    sim = Sim(model, substeps=8, contacts=True)
+    test.assertTrue(sim.solver._fluid.initial_overpacked)
+    sim.step(1)
+    q = sim.q()
+    # every centre is out of the box and the fluid moved there without being thrown
+    test.assertEqual(int(np.all(np.abs(q - centre) < half, axis=1).sum()), 0)
+    test.assertGreater(q.min(), 0.0)
+    test.assertLess(np.linalg.norm(sim.qd(), axis=1).max(), 1.5)
+    stats, _ = report(sim)
+    test.assertGreaterEqual(stats["overpacked_placed"], 12)
+
+
+def test_relaxation_inside_captured_graph(test, device):
+    """One graph of reset(mask, packed state) and a frame; the mask changes between replays, as eager calls do."""
+    graph_sim, eager = Sim(two_worlds(device, 1.0), contacts=True), Sim(two_worlds(device, 1.0), contacts=True)
+    source = squeezed(graph_sim, 0, 0.6)
+    squeezed_1 = squeezed(graph_sim, 1, 0.6)
+    source.particle_q.assign(
+        np.where(
+            (graph_sim.model.particle_world.numpy() == 1)[:, None],
+            squeezed_1.particle_q.numpy(),
+            source.particle_q.numpy(),
+        )
+    )
+    m = world_mask(device)
+    with wp.ScopedCapture(device=device) as capture:
+        graph_sim.solver.reset(graph_sim.state_0, m, fluid_source=source)
+        graph_sim.step(1)
+    for selected in ((), (0,), (), (1,), (0, 1)):
+        m.assign(world_mask(device, *selected).numpy())
+        wp.capture_launch(capture.graph)
+        eager.solver.reset(eager.state_0, world_mask(device, *selected), fluid_source=source)
+        eager.step(1)
+        np.testing.assert_allclose(graph_sim.q(), eager.q(), atol=1.0e-4)
+    stats, _ = report(eager)
+    test.assertEqual(stats["overpacked_placed"], 4 * np.prod(BLOCK))
+
+
+class TestFluidPlacement(unittest.TestCase):
+    pass
+
+
+devices = get_test_devices()
+for _name, _func in list(globals().items()):
+    if _name.startswith("test_") and callable(_func):
+        add_function_test(TestFluidPlacement, _name, _func, devices=devices)
+
+if __name__ == "__main__":
+    unittest.main(verbosity=2)
