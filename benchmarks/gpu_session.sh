@@ -45,15 +45,22 @@ for what in "$@"; do
       done ;;
     placement)
       # over-packed placements moved apart before they move (docs/archive/validation_notebook.md "Over-packed starts"):
-      # the packed start at three packings and at 100k (the first frame's time holds the relaxation), the cost where
-      # nothing is packed (the 100k dam break with the commit that added it and without), and the CUDA tests
+      # the packed start at three packings and at 100k (the first frame's time holds the relaxation; at 1.0 with
+      # --check-placement, the check where nothing is packed), the cost where nothing was placed (the 100k dam break
+      # with the commit that added it and without), and the CUDA tests
       for f in 0.5 0.7 0.9; do
-        python3 -m benchmarks packed_start --device cuda:0 --fraction $f --json "$out/packed_start_${f}_${gpu}.json" 2>&1 | grep -A1 '^device'
+        python3 -m benchmarks packed_start --device cuda:0 --fraction $f --json "$out/packed_start_${f}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
       done
-      python3 -m benchmarks packed_start --device cuda:0 --block 50 --layers 40 --height 8 --seconds 0.5 --fraction 0.7 \
-        --json "$out/packed_start_100k_0.7_${gpu}.json" 2>&1 | grep -A1 '^device'
-      placement=$(git log --diff-filter=A --format=%h -1 -- newton/_src/solvers/xpbd/fluid/placement.py)
-      git diff "$placement~1" "$placement" -- newton/_src > /tmp/placement.patch
+      for f in 0.5 0.7 1.0; do
+        check=""; [ $f = 1.0 ] && check="--check-placement"
+        python3 -m benchmarks packed_start --device cuda:0 --block 50 --layers 40 --height 8 --seconds 0.5 --fraction $f \
+          $check --json "$out/packed_start_100k_${f}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+      done
+      # (the change that added it, from git; PLACEMENT_PATCH names the patch file where the copy has no history)
+      if [ -n "${PLACEMENT_PATCH:-}" ]; then cp "$PLACEMENT_PATCH" /tmp/placement.patch; else
+        placement=$(git log --diff-filter=A --format=%h -1 -- newton/_src/solvers/xpbd/fluid/placement.py)
+        git diff "$placement~1" "$placement" -- newton/_src > /tmp/placement.patch
+      fi
       for round in 1 2; do
         for tag in without with; do
           [ $tag = without ] && git apply -R /tmp/placement.patch

@@ -98,6 +98,19 @@ def test_packed_start_rises_no_more_than_five_spacings(test, device):
             test.assertIn("within 1 % of rest density", named[0])
 
 
+def test_relaxation_can_be_switched_off(test, device):
+    sim = Sim(packed_box(device, 0.7), substeps=8, contacts=True, fluid_relax_overpacked=False)
+    test.assertFalse(sim.solver._fluid.initial_overpacked)
+    sim.step(1)
+    # stepped as placed: the correction of the packing leaves as velocity
+    test.assertGreater(np.linalg.norm(sim.qd(), axis=1).max(), 10.0)
+    stats, messages = report(sim)
+    test.assertEqual(stats["overpacked_placed"], 0)
+    test.assertFalse(any("placed more than" in m for m in messages), messages)
+    with test.assertRaisesRegex(ValueError, r"fluid_relax_overpacked='yes' is invalid: expected True or False"):
+        newton.solvers.SolverXPBD(packed_box(device, 0.7), fluid_rest_distance=D, fluid_relax_overpacked="yes")
+
+
 def test_relaxation_leaves_other_worlds_untouched(test, device):
     packed, plain = Sim(two_worlds(device, 0.6), contacts=True), Sim(two_worlds(device, 1.0), contacts=True)
     test.assertTrue(packed.solver._fluid.initial_overpacked)

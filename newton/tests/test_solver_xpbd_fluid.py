@@ -822,6 +822,7 @@ def reported(test, sim):
 
 
 def compressed_block(device):
+    """A block at 0.9 of the rest spacing: a load for the density passes (stepped with ``fluid_relax_overpacked=False``)."""
     return make_model(device, lambda b: add_block(b, (6, 6, 6), spacing=0.9 * D, jitter=0.05 * D))
 
 
@@ -834,7 +835,7 @@ def test_density_subiterations_and_tolerance(test, device):
         ("tolerance", {"fluid_max_iterations": 8, "fluid_density_tolerance": 0.02}),
     ):
         model = compressed_block(device)
-        sim = Sim(model, substeps=1, iterations=1, **kwargs)
+        sim = Sim(model, substeps=1, iterations=1, fluid_relax_overpacked=False, **kwargs)
         q0 = sim.q()
         sim.step(1)  # one substep of one XPBD iteration: the density passes alone
         stats = reported(test, sim)
@@ -865,7 +866,9 @@ def test_density_subpasses_match_xpbd_iterations(test, device):
         runs = []
         for kwargs in ({"iterations": n}, {"iterations": 1, "fluid_max_iterations": n}):
             # one step for both (the default follows the pass counts a mode may run, which differ here)
-            sim = Sim(compressed_block(device), substeps=2, fluid_relaxation=0.5, **kwargs)
+            sim = Sim(
+                compressed_block(device), substeps=2, fluid_relaxation=0.5, **kwargs, fluid_relax_overpacked=False
+            )
             sim.step(1)
             runs.append(sim.q())
         test.assertGreater(np.abs(runs[0] - compressed_block(device).particle_q.numpy()).max(), 0.05 * D)
@@ -874,10 +877,10 @@ def test_density_subpasses_match_xpbd_iterations(test, device):
 
 def test_density_subiterations_in_captured_graph(test, device):
     kwargs = {"fluid_max_iterations": 4, "fluid_density_tolerance": 0.01}
-    eager = Sim(compressed_block(device), **kwargs)
+    eager = Sim(compressed_block(device), **kwargs, fluid_relax_overpacked=False)
     eager.step(1)
     model = compressed_block(device)
-    sim = Sim(model, **kwargs)
+    sim = Sim(model, **kwargs, fluid_relax_overpacked=False)
     with wp.ScopedCapture(device=device) as capture:
         sim.step(1)
     sim.state_0.particle_q.assign(model.particle_q)
@@ -901,7 +904,15 @@ def test_density_subiterations_see_the_walls_move(test, device):
     model.soft_contact_mu = 0.0
     # (a full Jacobi step: the test is of the walls' measurement, which the stable default's smaller
     # step, 0.48 for one pass, would leave with more compression to show)
-    sim = Sim(model, substeps=1, iterations=1, contacts=True, fluid_max_iterations=4, fluid_relaxation=1.0)
+    sim = Sim(
+        model,
+        substeps=1,
+        iterations=1,
+        contacts=True,
+        fluid_max_iterations=4,
+        fluid_relaxation=1.0,
+        fluid_relax_overpacked=False,
+    )
     sim.step(1)
     stats = reported(test, sim)
     test.assertEqual(stats["density_subiterations"], 4)
@@ -995,7 +1006,7 @@ def test_tolerance_stops_xpbd_iterations(test, device):
         ("tolerance", {"iterations": 6, "fluid_density_tolerance": 0.02}),
     ):
         model = compressed_block(device)
-        sim = Sim(model, substeps=1, **kwargs)
+        sim = Sim(model, substeps=1, fluid_relax_overpacked=False, **kwargs)
         q0 = sim.q()
         sim.step(1)
         results[name] = (reported(test, sim), np.abs(sim.q() - q0).max())
@@ -1011,7 +1022,7 @@ def test_tolerance_stops_xpbd_iterations(test, device):
     test.assertLess(fixed["mean_compression"], tolerance["mean_compression"])
     # the next substep starts solving again: compressed anew, it takes as many passes again
     model = compressed_block(device)
-    sim = Sim(model, substeps=1, iterations=6, fluid_density_tolerance=0.02)
+    sim = Sim(model, substeps=1, iterations=6, fluid_density_tolerance=0.02, fluid_relax_overpacked=False)
     sim.step(1)
     sim.state_0.particle_q.assign(model.particle_q)
     sim.state_0.particle_qd.zero_()
@@ -1020,10 +1031,10 @@ def test_tolerance_stops_xpbd_iterations(test, device):
     test.assertEqual(passes, 2 * tolerance["density_subiterations"])
     # it is decided on the device, so a captured graph replays the same result
     kwargs = {"iterations": 6, "fluid_density_tolerance": 0.02}
-    eager = Sim(compressed_block(device), **kwargs)
+    eager = Sim(compressed_block(device), **kwargs, fluid_relax_overpacked=False)
     eager.step(1)
     model = compressed_block(device)
-    graph_sim = Sim(model, **kwargs)
+    graph_sim = Sim(model, **kwargs, fluid_relax_overpacked=False)
     if device.is_cuda:
         with wp.ScopedCapture(device=device) as capture:
             graph_sim.step(1)
@@ -1035,7 +1046,7 @@ def test_tolerance_stops_xpbd_iterations(test, device):
         graph_sim.step(1)
     np.testing.assert_allclose(graph_sim.q(), eager.q(), atol=1.0e-5)
     # switched on later it would need launches the solver was built without: refused, clearly
-    plain = Sim(compressed_block(device), iterations=2)
+    plain = Sim(compressed_block(device), iterations=2, fluid_relax_overpacked=False)
     with test.assertRaisesRegex(ValueError, "fluid_density_tolerance=0.01"):
         plain.solver.fluid_density_tolerance = 0.01
     sim.solver.fluid_density_tolerance = 0.05  # a solver created with it may change it
@@ -1115,7 +1126,7 @@ def test_warm_start_change_takes_effect(test, device):
         return make_model(device, lambda b: add_block(b, (6, 6, 6), spacing=0.9 * D), gravity=-9.81)
 
     model = block()
-    sim = Sim(model, fluid_warm_start=0.5)
+    sim = Sim(model, fluid_warm_start=0.5, fluid_relax_overpacked=False)
     capture = None
     if device.is_cuda:
         with wp.ScopedCapture(device=device) as capture:
@@ -1134,7 +1145,7 @@ def test_warm_start_change_takes_effect(test, device):
     # the multipliers carried from the first substeps push the compressed block further apart
     test.assertGreater(np.abs(result[0.5][0] - result[0.0][0]).max(), 1.0e-4)
     np.testing.assert_allclose(result[0.5][0], result[0.5][1], atol=1.0e-6)
-    eager = Sim(block(), fluid_warm_start=0.5)
+    eager = Sim(block(), fluid_warm_start=0.5, fluid_relax_overpacked=False)
     eager.step(1)
     np.testing.assert_allclose(eager.q(), result[0.5][0], atol=1.0e-5)
 
@@ -1149,7 +1160,7 @@ def test_warm_start_kept_by_the_last_correction(test, device):
         flags[0] = int(newton.ParticleFlags.FLUID)  # inactive: left out of the solve
         model.particle_flags.assign(flags)
         # one step for both (the default for a tolerance that may stop after one pass is smaller)
-        sim = Sim(model, fluid_warm_start=0.5, fluid_relaxation=0.5, **kwargs)
+        sim = Sim(model, fluid_warm_start=0.5, fluid_relaxation=0.5, **kwargs, fluid_relax_overpacked=False)
         sim.solver.fluid_warm_start_multipliers.fill_(3.0)
         sim.step(2)
         return sim.q(), sim.solver.fluid_warm_start_multipliers.numpy()
@@ -1180,7 +1191,7 @@ def test_warm_start_multipliers_checkpoint(test, device):
         return make_model(device, lambda b: add_block(b, (6, 6, 6), spacing=0.9 * D), gravity=-9.81)
 
     test.assertIsNone(Sim(block()).solver.fluid_warm_start_multipliers)
-    sim = Sim(block(), fluid_warm_start=0.5)
+    sim = Sim(block(), fluid_warm_start=0.5, fluid_relax_overpacked=False)
     sim.step(1)
     lam = sim.solver.fluid_warm_start_multipliers
     test.assertEqual(lam.shape, (sim.model.particle_count,))

@@ -99,6 +99,7 @@ class FluidConfig:
     fluid_warm_start: float = 0.0
     max_diffuse_particles: int = 0
     fluid_continuous_collision: bool = True
+    fluid_relax_overpacked: bool = True
 
     #: parameters that may change after construction (they live on the device)
     MUTABLE = (
@@ -132,10 +133,9 @@ class FluidConfig:
         self.fluid_max_neighbors = count_in_range("fluid_max_neighbors", self.fluid_max_neighbors, 4096)
         self.fluid_max_iterations = count_in_range("fluid_max_iterations", self.fluid_max_iterations, 64, lo=1)
         self.max_diffuse_particles = count_in_range("max_diffuse_particles", self.max_diffuse_particles, 2**31 - 1)
-        if not isinstance(self.fluid_continuous_collision, bool):
-            raise ValueError(
-                f"fluid_continuous_collision={self.fluid_continuous_collision!r} is invalid: expected True or False"
-            )
+        for name in ("fluid_continuous_collision", "fluid_relax_overpacked"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"{name}={getattr(self, name)!r} is invalid: expected True or False")
 
     def set(self, name: str, value) -> None:
         """Validate and store one mutable parameter."""

@@ -15,19 +15,28 @@ When: at the first step after construction if the model's initial fluid is over-
 first step after a :meth:`~newton.solvers.SolverXPBD.reset` that restored positions (from the
 initial particles if those were over-packed, from a caller's state always, since it is not known on
 the host). Which worlds: of those the placement touched, the ones with a fluid particle more than
-:data:`PLACEMENT_COMPRESSION` above rest density; their whole fluid is relaxed and every other world
-is left bitwise as it was. How: :data:`RELAXATION_ROUNDS` rounds of a neighbour build at the current
-positions, the density pass of the fluid's own sum (the walls' share is not counted: their contacts
-were found at the packed positions) and its correction applied to the positions of the relaxing
-worlds (bounded per pass as in a step), each move's path kept out of the static and kinematic
-shapes (:mod:`.continuous_collision`'s intersection). Gravity does not act while positions relax, so
-the fluid spreads into the free space around it, up as well as sideways, and starts to fall only in
-the step.
+:data:`PLACEMENT_COMPRESSION` above rest density by the fluid's own sum, or with a centre inside a
+static or kinematic shape; their whole fluid is relaxed and every other world is left bitwise as it
+was. How: up to :data:`RELAXATION_ROUNDS` rounds of a neighbour build at the current positions and
+:data:`RELAXATION_PASSES` Jacobi density passes applied to the positions of the relaxing worlds
+(bounded per pass as in a step, :data:`RELAXATION_MOMENTUM` of the last move carried on while the
+particle is compressed), with the walls' density from the shapes themselves (:func:`list_shape_walls`:
+the step's contacts were found at the packed positions), each move's path kept out of the static and
+kinematic shapes (:mod:`.continuous_collision`'s intersection) and the centre a radius off the walls;
+a world stops once all of its fluid is within :data:`PLACEMENT_TOLERANCE`. Gravity does not act while
+positions relax, so the fluid spreads into the free space around it, up as well as sideways, and
+starts to fall only in the step. The step's contacts of the moved fluid are then found again
+(:func:`refresh_relaxed_contacts`).
+
+A block deep in particles needs rounds in proportion to the square of its depth (a pass carries a
+correction about one neighbour further): 40 layers are not relaxed within the rounds, and what is
+left springs apart with velocity; the report says so (docs/archive/validation_notebook.md,
+"Over-packed starts").
 
 All of it is device work gated by device flags, so it can sit in a captured graph (a graph captured
-with a reset from a caller's state runs the check at every replay: about ``RELAXATION_ROUNDS``
-neighbour builds). What was found is counted on the device and reported, with a warning, by the next
-``fluid_diagnostics`` call.
+with a reset from a caller's state runs the check at every replay: every round's launches, about
+90 ms eager at 100k particles on an H200). What was found is counted on the device and reported,
+with a warning, by the next ``fluid_diagnostics`` call.
 """
 
 import warp as wp
@@ -48,14 +57,16 @@ PLACEMENT_COMPRESSION = wp.constant(0.1)
 PLACEMENT_TOLERANCE = wp.constant(0.01)
 
 #: most rounds of relaxation (a neighbour build and ``RELAXATION_PASSES`` density passes each); a world
-#: stops at the first round that finds all of its fluid within ``PLACEMENT_TOLERANCE``. Outside a graph
-#: every round is launched (the ones after the last world stopped return at once, but for their neighbour
-#: builds); inside one the rounds run as a conditional loop (``wp.capture_while``) that ends with the last world
+#: stops at the first round that finds all of its fluid within ``PLACEMENT_TOLERANCE``. Every round is
+#: launched (those after the last world stopped return at once, but for their neighbour builds)
 RELAXATION_ROUNDS = 64
 
 #: density passes per neighbour build (a pair that comes within ``h`` during a round's passes is missed until
 #: the next build; in a fluid that spreads, few do)
 RELAXATION_PASSES = 4
+
+#: share of a relaxing particle's last move carried into its next (Polyak's heavy ball)
+RELAXATION_MOMENTUM = wp.constant(0.5)
 
 # rounds of pushing a relaxing particle's path off the shapes it enters (continuous collision's count)
 _GUARD_ROUNDS = 4
@@ -91,17 +102,21 @@ def find_overpacked_worlds(
     particle_world: wp.array[wp.int32],
     world_count: int,
     placed: wp.array[wp.int32],
+    slot_fluid: wp.array[wp.int32],
     # outputs
     relaxing: wp.array[wp.int32],
     any_relaxing: wp.array[wp.int32],
     found: wp.array[float],
+    last_q: wp.array[wp.vec3],
 ):
     """A placed world relaxes if a fluid particle is past :data:`PLACEMENT_COMPRESSION` or inside a shape.
 
     The compression is the fluid's own sum (a lattice at rest reads 0 however close to a wall it was
     placed); inside is a centre behind a wall listed for the slot (:func:`list_shape_walls`). ``found``
     counts those particles (0) and keeps their largest compression (1) until reported (``found[2]``:
-    worlds left packed after the last round, see :func:`keep_packed_worlds_relaxing`).
+    worlds left packed after the last round, see :func:`keep_packed_worlds_relaxing`). Every placed
+    particle's ``last_q`` (by fluid index ``slot_fluid``) becomes its position: the relaxation's moves
+    start from rest.
     """
     i = wp.tid()
     pi = slots.particle[i]
@@ -110,10 +125,12 @@ def find_overpacked_worlds(
     row = world_row(particle_world[pi], world_count)
     if placed[row] == 0:
         return
+    xm = slots.xm[i]
+    # a relaxation starts at rest (its moves carry on from the last position)
+    last_q[slot_fluid[i]] = wp.vec3(xm[0], xm[1], xm[2])
     c = lambda_rho[i][1] - 1.0
     inside = int(0)
     n = slots.particle.shape[0]
-    xm = slots.xm[i]
     for t in range(wp.min(slots.wall_count[i], WALL_CONTACTS_PER_SLOT)):
         plane = slots.wall_plane[t * n + i]
         if plane[0] * xm[0] + plane[1] * xm[1] + plane[2] * xm[2] < plane[3]:
@@ -251,7 +268,12 @@ def relax_overpacked_fluid(
     dx = wp.spatial_top(density_correction_sum(slots, i, me, p, zero)) + wall_grad[i] * me.lam
     dx = relaxed_correction(dx, p)
     x0 = wp.vec3(xm[0], xm[1], xm[2])
+    # the heavy ball: the last pass's move carried on, so a long wave (the whole block spreading)
+    # converges in about as many passes as it is wide, not as its square; only while the particle is
+    # compressed (the unilateral constraint has nothing to stop a move carried past rest density)
     x1 = x0 + dx
+    if lr[1] > 1.0:
+        x1 += RELAXATION_MOMENTUM * (x0 - last_finite_q[k])
     radius = particle_radius[pi]
     if guarded != 0:
         row = wp.where(w >= 0 and w < shapes.world_count, w, shapes.world_count)
@@ -268,7 +290,8 @@ def relax_overpacked_fluid(
             if gap < radius:
                 x1 += (radius - gap) * normal
     particle_q[pi] = x1
-    last_finite_q[k] = x1
+    # (the position before the move, which the next pass's heavy ball reads; a finite one for the recovery)
+    last_finite_q[k] = x0
     moved_xm[i] = wp.vec4(x1[0], x1[1], x1[2], xm[3])
 
 
@@ -351,7 +374,7 @@ def refresh_relaxed_contacts(
     plane at the shape's surface point nearest to where the particle is now
     (:func:`~.continuous_collision.shape_distance`); for a shape it does not measure (a mesh, a
     cylinder) the plane is put a metre behind the particle, out of reach for the step (the next
-    collision finds it again; continuous collision keeps the fluid out of static and kinematic meshes meanwhile).
+    collision finds it again; continuous collision, when on, keeps the fluid out of static and kinematic meshes meanwhile).
     """
     k = wp.tid()
     if k >= wp.min(contact_count[0], contact_max):

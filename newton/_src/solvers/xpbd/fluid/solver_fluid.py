@@ -253,7 +253,9 @@ class FluidSolver:
             self.any_relaxing = wp.zeros(1, dtype=wp.int32)
             self.placement_packed = wp.zeros(rows, dtype=wp.int32)
             self.placement_rounds_left = wp.full(1, RELAXATION_ROUNDS, dtype=wp.int32)
-        self.placement_guard = self.continuous_collision or ContinuousCollision.build(model)
+        self.placement_guard = None
+        if config.fluid_relax_overpacked:
+            self.placement_guard = self.continuous_collision or ContinuousCollision.build(model)
         # the second stream (see FluidTuning.concurrent_passes), and whether work on it has not been joined yet
         concurrent = self.device.is_cuda and self.tuning.concurrent_passes
         self.side_stream = wp.Stream(self.device) if concurrent else None
@@ -264,7 +266,7 @@ class FluidSolver:
         self.schedule = density_schedule(self)
         self.update_params()
         #: whether the model's initial fluid is over-packed (a reset that restores it relaxes it again)
-        self.initial_overpacked = self._find_overpacked(model.particle_q)
+        self.initial_overpacked = config.fluid_relax_overpacked and self._find_overpacked(model.particle_q)
         #: whether the next step checks the placed worlds (and relaxes the over-packed ones)
         self.placement_pending = self.initial_overpacked
 
@@ -708,8 +710,15 @@ class FluidSolver:
         wp.launch(
             find_overpacked_worlds,
             dim=self.fluid_count,
-            inputs=[self.search.slots, self.lambda_rho, m.particle_world, int(m.world_count), self.placed],
-            outputs=[self.relaxing, self.any_relaxing, self.reports.overpacked],
+            inputs=[
+                self.search.slots,
+                self.lambda_rho,
+                m.particle_world,
+                int(m.world_count),
+                self.placed,
+                self.search.values,
+            ],
+            outputs=[self.relaxing, self.any_relaxing, self.reports.overpacked, self.last_finite_q],
             device=self.device,
         )
 
@@ -717,9 +726,8 @@ class FluidSolver:
         """Move the over-packed fluid of the worlds placed since the last step apart, positions only (:mod:`.placement`).
 
         Nothing (no launch) unless the construction found the initial fluid over-packed or a reset
-        restored positions since the last step. Outside a graph every round is launched (no
-        synchronisation); in a graph capture the rounds are a conditional loop that stops once every
-        world is relaxed.
+        restored positions since the last step. Every round is launched (no synchronisation); those
+        after the last world was relaxed return at once, but for their neighbour builds.
         """
         if not self.placement_pending:
             return
@@ -729,11 +737,10 @@ class FluidSolver:
         self.build_neighborhood(state.particle_q)
         # (lists the walls of every placed world, the relaxing ones among them)
         self._check_placed_worlds(shapes)
-        if self.device.is_capturing:
-            wp.capture_while(self.any_relaxing, self._relaxation_round, state=state, shapes=shapes, first=False)
-        else:
-            for r in range(RELAXATION_ROUNDS + 1):
-                self._relaxation_round(state, shapes, first=r == 0)
+        # (a fixed count of launches: a conditional loop would do only the rounds needed, but a CUDA
+        # conditional body may not allocate, and the neighbour sort's prefix sum does)
+        for r in range(RELAXATION_ROUNDS + 1):
+            self._relaxation_round(state, shapes, first=r == 0)
         c = self.contacts
         if c is not None and getattr(c, "soft_contact_count", None) is not None and c.soft_contact_max:
             wp.launch(
@@ -887,7 +894,7 @@ class FluidSolver:
             outputs=[state.particle_q, state.particle_qd, self.last_finite_q, self.particle_lambda],
             device=self.device,
         )
-        if restore_q and (source is not None or self.initial_overpacked):
+        if restore_q and self.config.fluid_relax_overpacked and (source is not None or self.initial_overpacked):
             # the restored worlds are checked for an over-packed placement at the next step
             wp.launch(
                 mark_placed_worlds,
