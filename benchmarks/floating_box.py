@@ -40,8 +40,8 @@ BOX_HALF = (0.15, 0.15, 0.1)  # [m]
 WATER_DENSITY = 1000.0  # particle mass / spacing^3 [kg/m^3]
 
 
-def build(spacing: float, box_density: float, device):
-    """The pool, its water at rest spacing and the box just above the surface: the model."""
+def build(spacing: float, box_density: float, device, start_depth: float = 0.0):
+    """The pool, its water at rest spacing and the box just above the surface (``start_depth`` spacings in it)."""
     d = spacing
     builder = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))
     # as many columns as fit between the walls (rounding up would start the outer ones inside them)
@@ -64,8 +64,9 @@ def build(spacing: float, box_density: float, device):
     builder.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(mu=0.0))
     add_tank(builder, POOL_HALF, POOL_HALF, 1.0, 0.05)
     # resting on the lattice's surface (half a spacing above its top layer; DEPTH rounded to layers): it sinks
-    # to its draft from there. A box started inside the water is thrown out by the contacts' first correction
-    body = builder.add_body(xform=wp.transform(wp.vec3(0.0, 0.0, nz * d + BOX_HALF[2]), wp.quat_identity()))
+    # to its draft from there. Started in the water, the fluid inside it is moved out by the first step
+    z = nz * d + BOX_HALF[2] - start_depth * d
+    body = builder.add_body(xform=wp.transform(wp.vec3(0.0, 0.0, z), wp.quat_identity()))
     box_cfg = newton.ModelBuilder.ShapeConfig(mu=0.0, density=box_density)
     builder.add_shape_box(body, hx=BOX_HALF[0], hy=BOX_HALF[1], hz=BOX_HALF[2], cfg=box_cfg)
     model = builder.finalize(device=device)
@@ -74,7 +75,7 @@ def build(spacing: float, box_density: float, device):
 
 
 def run(spacing: float, box_density: float, args, device) -> dict:
-    model = build(spacing, box_density, device)
+    model = build(spacing, box_density, device, args.start_depth)
     solver = newton.solvers.SolverXPBD(model, **solver_keywords(args, spacing))
     pipeline = newton.CollisionPipeline(model, soft_contact_gap=0.5 * spacing)
     contacts = pipeline.contacts()
@@ -91,11 +92,16 @@ def run(spacing: float, box_density: float, args, device) -> dict:
     frames = int(round(args.seconds * 60.0))
     averaged = int(round(args.average * 60.0))
     heights = []
+    highest, fastest = -np.inf, 0.0
     t0 = time.perf_counter()
     for k in range(frames):
         frame()
         if k >= frames - averaged:
             heights.append(float(states[0].body_q.numpy()[0, 2]))
+        if args.start_depth:
+            # (a start in the water: how hard it was thrown; a sync per frame, so no time is recorded)
+            highest = max(highest, float(states[0].body_q.numpy()[0, 2]))
+            fastest = max(fastest, float(np.linalg.norm(states[0].body_qd.numpy()[0, :3])))
     wp.synchronize_device(device)
     ms = (time.perf_counter() - t0) * 1000.0 / frames
     q = states[0].particle_q.numpy()
@@ -122,6 +128,8 @@ def run(spacing: float, box_density: float, args, device) -> dict:
         "mean_compression": stats["mean_compression"],
         "max_compression": stats["max_compression"],
         "ms_per_frame": ms,
+        "start_depth_spacings": args.start_depth,
+        **({"box_highest_m": highest, "box_max_speed_m_s": fastest} if args.start_depth else {}),
     }
 
 
@@ -130,6 +138,12 @@ def main(argv=None):
     parser.add_argument("--spacings", type=float, nargs="+", default=[0.1, 0.05])
     parser.add_argument("--densities", type=float, nargs="+", default=[250.0, 500.0, 750.0])
     parser.add_argument("--seconds", type=float, default=2.5, help="simulated time [s]")
+    parser.add_argument(
+        "--start-depth",
+        type=float,
+        default=0.0,
+        help="spacings the box starts below the surface (records its largest height and speed)",
+    )
     parser.add_argument("--average", type=float, default=1.0, help="the last seconds the box height is averaged over")
     add_solver_arguments(parser, defaults={"fluid_viscosity": 0.1})
     args = parser.parse_args(argv)

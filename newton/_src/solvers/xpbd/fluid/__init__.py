@@ -103,7 +103,7 @@ def fluid_diagnostics(self, state) -> dict:
         ``Contacts`` buffer's ``soft_contact_max``, so dropped with the walls they stand for; warns),
         ``shape_entries_stopped`` (particle substeps whose path continuous collision stopped at a static or
         kinematic shape, in all), ``overpacked_placed`` (fluid particles placed more than 10 % above rest
-        density or inside a static or kinematic shape since the last call, which the step after their
+        density or with a centre inside a shape since the last call, which the step after their
         placement moved apart, positions only; warns).
         Empty for a model without fluid.
     """
@@ -128,7 +128,7 @@ def reset(self, state, world_mask=None, flags=None, *, fluid_source=None) -> Non
     synchronisation: it can be captured in a CUDA graph, and the mask's contents may change between
     replays. Positions restored from a ``fluid_source`` (or from initial particles that were placed
     over-packed) are checked by the next :meth:`step`: a restored world whose fluid is more than 10 %
-    above rest density, or inside a static or kinematic shape, is first moved apart, positions only
+    above rest density, or with a centre inside a shape, is first moved apart, positions only
     (see :doc:`formulation`, "Over-packed placements"); that check costs the next step its
     64 rounds of launches (about 90 ms eager at 100k particles on an H200), also inside a graph.
 
@@ -314,7 +314,7 @@ _FLUID_DOC = """
             fluid_continuous_collision: Whether each fluid particle's path is kept out of static and kinematic
                 shapes (bool), set at construction. Defaults to True.
             fluid_relax_overpacked: Whether the step after a placement moves fluid placed over-packed (more
-                than 10 % above rest density) or inside a static or kinematic shape apart, positions only
+                than 10 % above rest density) or with a centre inside a shape apart, positions only
                 (bool), set at construction; False steps such a start as it is. Defaults to True.
 """
 

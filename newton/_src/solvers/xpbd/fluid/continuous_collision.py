@@ -543,8 +543,12 @@ class ContinuousCollision:
         self.stopped_count = wp.zeros(1, dtype=wp.int32, device=d)
 
     @classmethod
-    def build(cls, model) -> ContinuousCollision | None:
-        """The guard of ``model``'s static and kinematic shapes that collide with particles, or ``None`` without any."""
+    def build(cls, model, dynamic: bool = False) -> ContinuousCollision | None:
+        """The guard of ``model``'s static and kinematic shapes that collide with particles, or ``None`` without any.
+
+        With ``dynamic``, the shapes of dynamic bodies too (for moves that take no time, where a body is
+        held where it is: :mod:`.placement`).
+        """
         if not model.shape_count:
             return None
         shape_type = model.shape_type.numpy()
@@ -552,7 +556,7 @@ class ContinuousCollision:
         flags = model.shape_flags.numpy()
         scale = model.shape_scale.numpy()
         guarded = (
-            still_shapes(model)
+            (still_shapes(model) | dynamic)
             & ((flags & int(ShapeFlags.COLLIDE_PARTICLES)) != 0)
             & np.isin(shape_type, [int(t) for t in GUARDED_TYPES])
             # a barrel-sided cylinder is not the straight one intersected here

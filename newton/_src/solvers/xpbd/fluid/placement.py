@@ -16,13 +16,14 @@ first step after a :meth:`~newton.solvers.SolverXPBD.reset` that restored positi
 initial particles if those were over-packed, from a caller's state always, since it is not known on
 the host). Which worlds: of those the placement touched, the ones with a fluid particle more than
 :data:`PLACEMENT_COMPRESSION` above rest density by the fluid's own sum, or with a centre inside a
-static or kinematic shape; their whole fluid is relaxed and every other world is left bitwise as it
+shape (a static one, or a body's, held where it is); their whole fluid is relaxed and every other world is left bitwise as it
 was. How: up to :data:`RELAXATION_ROUNDS` rounds of a neighbour build at the current positions and
 :data:`RELAXATION_PASSES` Jacobi density passes applied to the positions of the relaxing worlds
 (bounded per pass as in a step, :data:`RELAXATION_MOMENTUM` of the last move carried on while the
 particle is compressed), with the walls' density from the shapes themselves (:func:`list_shape_walls`:
-the step's contacts were found at the packed positions), each move's path kept out of the static and
-kinematic shapes (:mod:`.continuous_collision`'s intersection) and the centre a radius off the walls;
+the step's contacts were found at the packed positions), each move's path kept out of the shapes
+(:mod:`.continuous_collision`'s intersection; a body's shapes held where they are) and the centre a
+radius off the walls;
 a world stops once all of its fluid is within :data:`PLACEMENT_TOLERANCE`. Gravity does not act while
 positions relax, so the fluid spreads into the free space around it, up as well as sideways, and
 starts to fall only in the step. The step's contacts of the moved fluid are then found again

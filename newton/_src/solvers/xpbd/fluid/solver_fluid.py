@@ -253,9 +253,9 @@ class FluidSolver:
             self.any_relaxing = wp.zeros(1, dtype=wp.int32)
             self.placement_packed = wp.zeros(rows, dtype=wp.int32)
             self.placement_rounds_left = wp.full(1, RELAXATION_ROUNDS, dtype=wp.int32)
-        self.placement_guard = None
-        if config.fluid_relax_overpacked:
-            self.placement_guard = self.continuous_collision or ContinuousCollision.build(model)
+        # (every shape that collides with particles, dynamic bodies' held where they are: fluid placed in a
+        # body is moved out of it, positions only, rather than thrown out by its contacts)
+        self.placement_guard = ContinuousCollision.build(model, dynamic=True) if config.fluid_relax_overpacked else None
         # the second stream (see FluidTuning.concurrent_passes), and whether work on it has not been joined yet
         concurrent = self.device.is_cuda and self.tuning.concurrent_passes
         self.side_stream = wp.Stream(self.device) if concurrent else None
