@@ -8,7 +8,6 @@ before, PBF turned the packing's correction into velocity (``benchmarks/packed_s
 """
 
 import unittest
-import warnings
 
 import numpy as np
 import warp as wp
@@ -16,6 +15,8 @@ from newton.tests.unittest_utils import add_function_test, get_test_devices
 
 import newton
 from newton.examples.fluid.common import add_closed_box
+from newton.tests.test_fluid_reset import assert_same
+from newton.tests.test_fluid_stress import report
 from newton.tests.test_solver_xpbd_fluid import D, Sim, add_block
 
 BLOCK = (6, 6, 5)  # particles of the placed block
@@ -52,23 +53,8 @@ def two_worlds(device, fraction0):
     return model
 
 
-def report(sim):
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        stats = sim.solver.fluid_diagnostics(sim.state_0)
-    return stats, [str(w.message) for w in caught]
-
-
 def world_of(sim, array, w):
     return array.numpy()[sim.model.particle_world.numpy() == w].astype(np.float64)
-
-
-def assert_same(test, device, a, b):
-    """Bitwise on the CPU; on CUDA the contacts' atomic sums reorder, so within float noise of a short run."""
-    if device.is_cuda:
-        np.testing.assert_allclose(a, b, atol=2.0e-3)
-    else:
-        np.testing.assert_array_equal(a, b)
 
 
 def test_packed_start_rises_no_more_than_five_spacings(test, device):
