@@ -69,10 +69,6 @@ RELAXATION_PASSES = 4
 #: share of a relaxing particle's last move carried into its next (Polyak's heavy ball)
 RELAXATION_MOMENTUM = wp.constant(0.5)
 
-# rounds of pushing a relaxing particle's path off the shapes it enters (continuous collision's count)
-_GUARD_ROUNDS = 4
-
-
 # placed[w] of a world whose fluid the step found over-packed (its contacts are refreshed after the relaxation)
 RELAXED = wp.constant(2)
 
@@ -173,7 +169,7 @@ def list_shape_walls(
     h = params[0].h
     xm = slots.xm[i]
     x = wp.vec3(xm[0], xm[1], xm[2])
-    row = wp.where(w >= 0 and w < shapes.world_count, w, shapes.world_count)
+    row = world_row(w, shapes.world_count)
     n = slots.particle.shape[0]
     count = int(0)
     for k in range(shapes.row_start[row], shapes.row_start[row + 1]):
@@ -201,13 +197,20 @@ def list_shape_walls(
 
 
 @wp.func
-def path_end_outside_shapes(shapes: GuardedShapes, lo: int, hi: int, x0: wp.vec3, x1: wp.vec3, radius: float):
-    """Where a move from ``x0`` to ``x1`` ends once kept out of the shapes ``lo..hi`` (no velocity to stop)."""
-    for r in range(_GUARD_ROUNDS):
+def path_end_outside_shapes(
+    shapes: GuardedShapes, lo: int, hi: int, x0: wp.vec3, x1: wp.vec3, radius: float, rounds: int
+):
+    """Where a move from ``x0`` to ``x1`` ends once kept out of the shapes ``lo..hi`` (no velocity to stop).
+
+    Continuous collision's rule (:func:`~.continuous_collision.stop_fluid_paths_at_shapes`): onto each
+    entered shape's tangent plane, a radius off it, for ``rounds`` rounds (a kernel argument, so that
+    Warp does not unroll the loop), and back to ``x0`` if the last still enters.
+    """
+    for r in range(rounds):
         t, normal, point, point_start = first_shape_entry(shapes, lo, hi, x0, x1)
         if t > 1.0:
             return x1
-        if r < _GUARD_ROUNDS - 1:
+        if r < rounds - 1:
             x1 = x1 + (radius - wp.dot(normal, x1 - point)) * normal
         else:
             return x0
@@ -231,6 +234,7 @@ def relax_overpacked_fluid(
     any_relaxing: wp.array[wp.int32],
     shapes: GuardedShapes,
     guarded: int,
+    guard_rounds: int,
     # outputs
     particle_q: wp.array[wp.vec3],
     last_finite_q: wp.array[wp.vec3],
@@ -277,11 +281,11 @@ def relax_overpacked_fluid(
         x1 += RELAXATION_MOMENTUM * (x0 - last_finite_q[k])
     radius = particle_radius[pi]
     if guarded != 0:
-        row = wp.where(w >= 0 and w < shapes.world_count, w, shapes.world_count)
+        row = world_row(w, shapes.world_count)
         lo = shapes.row_start[row]
         hi = shapes.row_start[row + 1]
         if lo < hi:
-            x1 = path_end_outside_shapes(shapes, lo, hi, x0, x1, radius)
+            x1 = path_end_outside_shapes(shapes, lo, hi, x0, x1, radius, guard_rounds)
         # a radius off every wall listed for the slot, as the step's contacts will hold it
         n = slots.particle.shape[0]
         for t in range(wp.min(slots.wall_count[i], WALL_CONTACTS_PER_SLOT)):

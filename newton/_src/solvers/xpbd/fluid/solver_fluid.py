@@ -35,7 +35,7 @@ from .config import (
     free_memory,
     real_in_range,
 )
-from .continuous_collision import ContinuousCollision, GuardedShapes, still_shapes
+from .continuous_collision import GUARD_ROUNDS, ContinuousCollision, GuardedShapes, still_shapes
 from .density_constraint import (
     APPLY_ADVANCE,
     APPLY_AS_XPBD,
@@ -818,6 +818,7 @@ class FluidSolver:
                     self.any_relaxing,
                     shapes,
                     int(self.placement_guard is not None),
+                    GUARD_ROUNDS,
                 ],
                 outputs=[state.particle_q, self.last_finite_q, self._slot_views[1 - self.current].xm],
                 device=self.device,
