@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/archive/performance_notebook.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|collision|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|collision|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
 set -u
 out=${1:?output folder}; shift
 export PYTHONUNBUFFERED=1
@@ -71,6 +71,25 @@ for what in "$@"; do
       done
       python3 -m pytest -q -k cuda newton/tests/test_fluid_placement.py newton/tests/test_fluid_stress.py \
         newton/tests/test_fluid_reset.py 2>&1 | tail -5 ;;
+    placement-graph)
+      # the relaxation's rounds as a conditional loop in a CUDA graph (docs/archive/validation_notebook.md "Over-packed
+      # starts"): the 40-layer 100k block in a graph and eager, the check where nothing is packed in a graph and eager,
+      # and the CUDA tests
+      ps="python3 -m benchmarks packed_start --device cuda:0"
+      for f in 0.5 0.7; do
+        $ps --block 50 --layers 40 --height 8 --seconds 0.5 --fraction $f --graph \
+          --json "$out/packed_start_100k_${f}_graph_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+      done
+      $ps --block 50 --layers 40 --height 8 --seconds 0.5 --fraction 0.5 \
+        --json "$out/packed_start_100k_0.5_eager_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+      $ps --fraction 0.7 --graph --json "$out/packed_start_0.7_graph_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+      for mode in "" "--graph"; do
+        tag=${mode:-eager}; tag=${tag#--}
+        $ps --block 50 --layers 40 --height 8 --seconds 0.5 --fraction 1 --check-placement $mode \
+          --json "$out/packed_start_100k_1.0_check_${tag}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+      done
+      python3 -m pytest -q -k cuda newton/tests/test_fluid_placement.py newton/tests/test_fluid_reset.py \
+        newton/tests/test_fluid_stress.py newton/tests/test_solver_xpbd_fluid.py 2>&1 | tail -5 ;;
     collision)
       # the cost of continuous collision at the 100k dam break (docs/archive/performance_notebook.md "Continuous collision")
       for v in "" "--no-continuous-collision"; do

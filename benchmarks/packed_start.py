@@ -16,7 +16,7 @@ leaves, and none rises more than 5 spacings above the settled level.
 
 Usage::
 
-    python -m benchmarks packed_start [--fraction 0.7] [--no-continuous-collision] [--json out.json]
+    python -m benchmarks packed_start [--fraction 0.7] [--no-continuous-collision] [--graph] [--json out.json]
 """
 
 from __future__ import annotations
@@ -72,15 +72,33 @@ def run(args, device) -> dict:
     if args.check_placement:
         # a reset from a state the host cannot see into: the first step checks it (and finds nothing at 1.0)
         solver.reset(s0, None, fluid_source=s1)
+    states = [s0, s1]
+
+    def simulate():
+        for _ in range(args.substeps):
+            states[0].clear_forces()
+            pipeline.collide(states[0], contacts)
+            solver.step(states[0], states[1], None, contacts, dt)
+            states.reverse()
+
+    advance = simulate
+    if args.graph:
+        # one frame captured (an even count of substeps leaves the states where they were); its first replay
+        # checks and relaxes the placement in conditional nodes, which the later replays skip
+        if not device.is_cuda or args.substeps % 2:
+            raise ValueError(f"--graph needs a CUDA device and an even --substeps, got {device}, {args.substeps}")
+        with wp.ScopedCapture(device=device) as capture:
+            simulate()
+
+        def advance():
+            wp.capture_launch(capture.graph)
+
     frame_s = []
     for frame in track(range(int(round(args.seconds * 60.0))), "packed_start", unit="frame"):
         wp.synchronize_device(device)
         start = time.perf_counter()
-        for _ in range(args.substeps):
-            s0.clear_forces()
-            pipeline.collide(s0, contacts)
-            solver.step(s0, s1, None, contacts, dt)
-            s0, s1 = s1, s0
+        advance()
+        s0 = states[0]
         wp.synchronize_device(device)
         frame_s.append(time.perf_counter() - start)
         q = s0.particle_q.numpy().astype(np.float64)
@@ -109,8 +127,10 @@ def run(args, device) -> dict:
         "rise_above_level_spacings": (highest - level) / d,
         "max_speed_m_s": fastest,
         "max_speed_first_frame_m_s": fastest_first_frame,
-        # eager frames with a collision every substep; the first one relaxes an over-packed placement
+        # frames with a collision every substep, eager or a graph's replays; the first one relaxes an
+        # over-packed placement
         "check_placement": args.check_placement,
+        "graph": args.graph,
         "first_frame_ms": 1.0e3 * frame_s[0],
         "frame_ms_median": 1.0e3 * float(np.median(frame_s[1:])),
         "overpacked_placed": stats["overpacked_placed"],
@@ -133,6 +153,12 @@ def main(argv=None):
         action="store_true",
         help="reset from a copy of the start before the first frame, so that its step checks the placement "
         "(with --fraction 1 the first frame's extra time is the check where nothing is packed)",
+    )
+    parser.add_argument(
+        "--graph",
+        action="store_true",
+        help="replay a frame captured in a CUDA graph (the relaxation's rounds a conditional loop) instead of "
+        "eager frames (a fixed count of rounds launched)",
     )
     add_solver_arguments(parser)
     args = parser.parse_args(argv)

@@ -14,6 +14,8 @@ import warp as wp
 from newton.tests.unittest_utils import add_function_test, get_test_devices
 
 import newton
+import newton._src.solvers.xpbd.fluid.solver_fluid as solver_fluid
+from newton._src.solvers.xpbd.fluid.placement import EAGER_RELAXATION_ROUNDS, RELAXATION_ROUNDS
 from newton.examples.fluid.common import add_closed_box
 from newton.tests.test_fluid_reset import assert_same
 from newton.tests.test_fluid_stress import report
@@ -234,6 +236,54 @@ def test_relaxation_inside_captured_graph(test, device):
         np.testing.assert_allclose(graph_sim.q(), eager.q(), atol=1.0e-4)
     stats, _ = report(eager)
     test.assertEqual(stats["overpacked_placed"], 4 * np.prod(BLOCK))
+
+
+def deep_packed_column(device, fraction):
+    """A column 4 x 4 particles wide and 40 deep at ``fraction`` of its spacing, in a closed box as wide as it is at rest."""
+    builder = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))
+    edge, s = 4 * D, fraction * D
+    corner = 0.5 * (edge - 4 * s) + 0.5 * s
+    add_block(builder, (4, 4, 40), origin=(corner, corner, 0.5 * s), spacing=s, jitter=0.01 * D)
+    add_closed_box(builder, edge, 120 * D, thickness=2.0 * D)
+    model = builder.finalize(device=device)
+    model.soft_contact_mu = 0.0
+    return model
+
+
+def test_deep_column_relaxes_in_a_conditional_loop(test, device):
+    # a correction travels about a neighbour per pass, so the rounds grow with the square of the depth: 40
+    # layers take about 270 rounds. In a graph (and on the CPU) the rounds are a conditional loop that runs
+    # until the last world is relaxed, up to RELAXATION_ROUNDS
+    sim = Sim(deep_packed_column(device, 0.5), substeps=8, contacts=True)
+    with wp.ScopedCapture(device=device) as capture:
+        sim.step(1)
+    wp.capture_launch(capture.graph)
+    rounds = RELAXATION_ROUNDS - int(sim.solver._fluid.placement_rounds_left.numpy()[0])
+    test.assertGreater(rounds, 2 * EAGER_RELAXATION_ROUNDS)
+    test.assertLess(rounds, RELAXATION_ROUNDS)
+    test.assertLess(np.linalg.norm(sim.qd(), axis=1).max(), 1.0)
+    stats, messages = report(sim)
+    test.assertEqual(stats["overpacked_placed"], 640)
+    test.assertTrue(any("within 1 % of rest density" in m for m in messages), messages)
+    # the graph's later replays skip the check: they step as the eager solver steps the relaxed column
+    eager = Sim(deep_packed_column(device, 0.5), substeps=8, contacts=True)
+    eager.state_0.particle_q.assign(sim.state_0.particle_q)
+    eager.state_0.particle_qd.assign(sim.state_0.particle_qd)
+    eager.solver._fluid.placement_pending = False
+    wp.capture_launch(capture.graph)
+    eager.step(1)
+    np.testing.assert_allclose(sim.q(), eager.q(), atol=1.0e-4)
+    test.assertEqual(report(sim)[0]["overpacked_placed"], 0)
+    # with the rounds a CUDA step without a graph launches, the column is left packed and springs apart
+    short = Sim(deep_packed_column(device, 0.5), substeps=8, contacts=True)
+    kept, solver_fluid.RELAXATION_ROUNDS = solver_fluid.RELAXATION_ROUNDS, EAGER_RELAXATION_ROUNDS
+    try:
+        short.step(1)
+    finally:
+        solver_fluid.RELAXATION_ROUNDS = kept
+    test.assertGreater(np.linalg.norm(short.qd(), axis=1).max(), 5.0)
+    _, messages = report(short)
+    test.assertTrue(any("were still packed" in m for m in messages), messages)
 
 
 class TestFluidPlacement(unittest.TestCase):

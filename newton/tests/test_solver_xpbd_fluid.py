@@ -15,6 +15,7 @@ from newton._src.solvers.xpbd.fluid.calibration import wall_density_tables
 from newton._src.solvers.xpbd.fluid.config import FULL_NEIGHBOR_FACTOR, FluidTuning
 from newton._src.solvers.xpbd.fluid.density_constraint import density_constraint_lambda
 from newton._src.solvers.xpbd.fluid.neighbors import FluidNeighborSearch
+from newton._src.solvers.xpbd.fluid.prefix_sum import SCAN_TILE, ExclusiveScan
 from newton._src.solvers.xpbd.fluid.sph import (
     FluidParams,
     FluidSlots,
@@ -509,6 +510,45 @@ def test_sort_orders_each_cell_by_fluid_index(test, device):
         test.assertTrue(np.all(np.diff(values)[same_cell] > 0))
         test.assertGreaterEqual(np.bincount(keys[inside]).max(), 40)
         test.assertEqual(np.count_nonzero(search.cell_count.numpy()), 0)
+
+
+def test_prefix_sum_matches_cumsum(test, device):
+    # one tile, one past it, and three levels of tiles (a table of 2^20 entries and more, as 500k fluid
+    # particles make); the counts as the sort's cells hold them, many zeros
+    rng = np.random.default_rng(3)
+    for n in (1, SCAN_TILE - 1, SCAN_TILE + 1, 37 * SCAN_TILE + 5, SCAN_TILE * SCAN_TILE + 9):
+        with test.subTest(n=n):
+            counts = (rng.integers(0, 3, n) * (rng.random(n) < 0.3)).astype(np.int32)
+            offsets = wp.full(n, -7, dtype=wp.int32, device=device)
+            scan = ExclusiveScan(n, device)
+            for _ in range(2):  # its storage is reused
+                scan.run(wp.array(counts, dtype=wp.int32, device=device), offsets)
+                np.testing.assert_array_equal(offsets.numpy(), np.cumsum(counts) - counts)
+
+
+def test_allocation_free_sort_sorts_as_array_scan(test, device):
+    # the sort in a conditional node's body takes its offsets from ExclusiveScan: the same slots
+    rng = np.random.default_rng(5)
+    q = rng.uniform(0.0, 0.4, size=(700, 3)).astype(np.float32)
+    n = len(q)
+    args = (
+        wp.array(q, dtype=wp.vec3, device=device),
+        wp.full(n, MASS, dtype=float, device=device),
+        wp.full(n, int(FLUID), dtype=wp.int32, device=device),
+        wp.zeros(n, dtype=wp.int32, device=device),
+    )
+    params = wp.zeros(1, dtype=FluidParams, device=device)
+    built = []
+    for allocation_free in (False, True):
+        search = FluidNeighborSearch(
+            wp.array(np.arange(n, dtype=np.int32), dtype=wp.int32, device=device), n, 1, 1.8 * D, 120, False
+        )
+        search.compute_keys(args[0], args[2], args[3], params)
+        search.sort(args[0], args[1], args[3], allocation_free=allocation_free)
+        built.append([a.numpy() for a in (search.cell_offset, search.keys, search.values, search.sorted_particle)])
+    for a, b in zip(*built, strict=True):
+        np.testing.assert_array_equal(a, b)
+    test.assertGreater(built[0][0].max(), 0)
 
 
 @wp.kernel

@@ -12,7 +12,7 @@ import numpy as np
 import warp as wp
 
 from .density_constraint import COMPRESSION_BINS, PEAK_COMPRESSION
-from .placement import PLACEMENT_COMPRESSION, PLACEMENT_TOLERANCE, RELAXATION_ROUNDS
+from .placement import EAGER_RELAXATION_ROUNDS, PLACEMENT_COMPRESSION, PLACEMENT_TOLERANCE, RELAXATION_ROUNDS
 from .sph import FluidParams, FluidSlots
 
 #: mean compression max(rho/rho0 - 1, 0) above which :meth:`FluidSolver.diagnostics` warns that the density
@@ -159,7 +159,8 @@ class FluidReports:
                 f"to within {100.0 * PLACEMENT_TOLERANCE:.0f} % of rest density"
                 if unfinished == 0
                 else f"but {unfinished} world(s) were still packed past {100.0 * PLACEMENT_TOLERANCE:.0f} % after "
-                f"{RELAXATION_ROUNDS} rounds (the rest springs apart with velocity)"
+                f"its rounds ({RELAXATION_ROUNDS} in a CUDA graph or on the CPU, {EAGER_RELAXATION_ROUNDS} in a CUDA "
+                "step without a graph; the rest springs apart with velocity)"
             )
             warnings.warn(
                 f"{count} fluid particles were placed more than {100.0 * PLACEMENT_COMPRESSION:.0f} % above rest "

@@ -43,6 +43,7 @@ import numpy as np
 import warp as wp
 
 from ....geometry import ParticleFlags
+from .prefix_sum import ExclusiveScan
 from .sph import MAX_DISPLACEMENT_OFF, FluidParams, FluidSlots
 from .walls import WALL_CONTACTS_PER_SLOT, FluidWallContacts, list_wall_contact
 
@@ -432,6 +433,7 @@ class FluidNeighborSearch:
             # the counts are zero between builds
             self.cell_count = wp.zeros(self.mask + 2, dtype=wp.int32)
             self.cell_offset = wp.zeros(self.mask + 2, dtype=wp.int32)
+            self.prefix_sum = ExclusiveScan(self.mask + 2, device)
             self.sorted_particle = wp.full(n, -1, dtype=wp.int32)
             self.sorted_xm = wp.zeros(n, dtype=wp.vec4)
             self.sorted_world = wp.full(n, _NO_WORLD, dtype=wp.int32)
@@ -524,17 +526,24 @@ class FluidNeighborSearch:
             device=particle_q.device,
         )
 
-    def sort(self, particle_q: wp.array, particle_mass: wp.array, particle_world: wp.array) -> None:
+    def sort(
+        self, particle_q: wp.array, particle_mass: wp.array, particle_world: wp.array, allocation_free: bool = False
+    ) -> None:
         """Counting-sort the fluid particles by their table entry and gather them (part of :meth:`build`).
 
         Reads :attr:`cell_keys` and the counts and ranks the key pass made; writes the sorted keys to
         :attr:`keys`, the fluid index of each slot to :attr:`values` and the slots' particles,
         positions (at ``particle_q``), masses and worlds, and leaves the counts zero. Entry
-        ``mask + 1`` holds the left-out particles, which sort last (see the module notes).
+        ``mask + 1`` holds the left-out particles, which sort last (see the module notes). With
+        ``allocation_free`` the entries' offsets come from :class:`~.prefix_sum.ExclusiveScan` (for the body
+        of a CUDA conditional node, which may not allocate as ``wp.utils.array_scan`` does).
         """
         n = self.slot_count
         device = self.keys.device
-        wp.utils.array_scan(self.cell_count, self.cell_offset, inclusive=False)
+        if allocation_free:
+            self.prefix_sum.run(self.cell_count, self.cell_offset)
+        else:
+            wp.utils.array_scan(self.cell_count, self.cell_offset, inclusive=False)
         wp.launch(
             scatter_fluid_cell_keys,
             dim=n,

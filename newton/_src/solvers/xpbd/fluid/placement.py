@@ -17,7 +17,7 @@ initial particles if those were over-packed, from a caller's state always, since
 the host). Which worlds: of those the placement touched, the ones with a fluid particle more than
 :data:`PLACEMENT_COMPRESSION` above rest density by the fluid's own sum, or with a centre inside a
 shape (a static one, or a body's, held where it is); their whole fluid is relaxed and every other world is left bitwise as it
-was. How: up to :data:`RELAXATION_ROUNDS` rounds of a neighbour build at the current positions and
+was. How: rounds of a neighbour build at the current positions and
 :data:`RELAXATION_PASSES` Jacobi density passes applied to the positions of the relaxing worlds
 (bounded per pass as in a step, :data:`RELAXATION_MOMENTUM` of the last move carried on while the
 particle is compressed), with the walls' density from the shapes themselves (:func:`list_shape_walls`:
@@ -30,14 +30,15 @@ starts to fall only in the step. The step's contacts of the moved fluid are then
 (:func:`refresh_relaxed_contacts`).
 
 A block deep in particles needs rounds in proportion to the square of its depth (a pass carries a
-correction about one neighbour further): 40 layers are not relaxed within the rounds, and what is
-left springs apart with velocity; the report says so (docs/archive/validation_notebook.md,
-"Over-packed starts").
-
-All of it is device work gated by device flags, so it can sit in a captured graph (a graph captured
-with a reset from a caller's state runs the check at every replay: every round's launches, about
-90 ms eager at 100k particles on an H200). What was found is counted on the device and reported,
-with a warning, by the next ``fluid_diagnostics`` call.
+correction about one neighbour further): 40 layers take about 270. In a CUDA graph and on the CPU the
+check runs only if a world was placed (a conditional node on a device flag, so a graph captured with
+a reset runs nothing more when its mask selects no world) and the rounds are a conditional loop
+that stops at the last relaxing world, up to :data:`RELAXATION_ROUNDS`. A CUDA step without a graph
+cannot read those flags without synchronising, so it launches :data:`EAGER_RELAXATION_ROUNDS` rounds,
+which leave a 40-layer block packed; what is left springs apart with velocity, and the report says
+so (docs/archive/validation_notebook.md, "Over-packed starts"). The conditional bodies' neighbour
+builds sort with :mod:`.prefix_sum` (a body may not allocate). What was found is counted on the
+device and reported, with a warning, by the next ``fluid_diagnostics`` call.
 """
 
 import warp as wp
@@ -57,10 +58,15 @@ PLACEMENT_COMPRESSION = wp.constant(0.1)
 #: compression ``rho / rho0 - 1`` (the walls' share counted) below which a relaxing world's fluid is relaxed
 PLACEMENT_TOLERANCE = wp.constant(0.01)
 
-#: most rounds of relaxation (a neighbour build and ``RELAXATION_PASSES`` density passes each); a world
-#: stops at the first round that finds all of its fluid within ``PLACEMENT_TOLERANCE``. Every round is
-#: launched (those after the last world stopped return at once, but for their neighbour builds)
-RELAXATION_ROUNDS = 64
+#: most rounds of relaxation (a neighbour build and ``RELAXATION_PASSES`` density passes each) in a CUDA
+#: graph or on the CPU: a conditional loop, which stops at the round that finds the last relaxing world's
+#: fluid within ``PLACEMENT_TOLERANCE`` (a world stops at its own such round)
+RELAXATION_ROUNDS = 512
+
+#: rounds a CUDA step without a graph launches, every one of them (it cannot read the flag that would stop
+#: them without synchronising; those after the last world stopped return at once, but for their neighbour
+#: builds)
+EAGER_RELAXATION_ROUNDS = 64
 
 #: density passes per neighbour build (a pair that comes within ``h`` during a round's passes is missed until
 #: the next build; in a fluid that spreads, few do)
@@ -85,11 +91,13 @@ def mark_placed_worlds(
     use_mask: int,
     # outputs
     placed: wp.array[wp.int32],
+    any_placed: wp.array[wp.int32],
 ):
     """Mark the worlds a reset restored (all without a mask): their fluid is checked at the next step."""
     w = wp.tid()
     if use_mask == 0 or world_mask[w]:
         placed[w] = 1
+        any_placed[0] = 1
 
 
 @wp.kernel
@@ -100,9 +108,11 @@ def find_overpacked_worlds(
     world_count: int,
     placed: wp.array[wp.int32],
     slot_fluid: wp.array[wp.int32],
+    rounds: int,
     # outputs
     relaxing: wp.array[wp.int32],
     any_relaxing: wp.array[wp.int32],
+    rounds_left: wp.array[wp.int32],
     found: wp.array[float],
     last_q: wp.array[wp.vec3],
 ):
@@ -113,9 +123,11 @@ def find_overpacked_worlds(
     counts those particles (0) and keeps their largest compression (1) until reported (``found[2]``:
     worlds left packed after the last round, see :func:`keep_packed_worlds_relaxing`). Every placed
     particle's ``last_q`` (by fluid index ``slot_fluid``) becomes its position: the relaxation's moves
-    start from rest.
+    start from rest. The relaxation that follows may run ``rounds`` rounds.
     """
     i = wp.tid()
+    if i == 0:
+        rounds_left[0] = rounds
     pi = slots.particle[i]
     if pi < 0:
         return
@@ -408,17 +420,16 @@ def refresh_relaxed_contacts(
 
 @wp.kernel
 def clear_placement(
-    rounds: int,
     # outputs
     placed: wp.array[wp.int32],
+    any_placed: wp.array[wp.int32],
     relaxing: wp.array[wp.int32],
     any_relaxing: wp.array[wp.int32],
-    rounds_left: wp.array[wp.int32],
 ):
-    """Forget the placement: no world placed or relaxing, and the next relaxation's ``rounds`` in store."""
+    """Forget the placement: no world placed or relaxing."""
     w = wp.tid()
     placed[w] = 0
     relaxing[w] = 0
     if w == 0:
+        any_placed[0] = 0
         any_relaxing[0] = 0
-        rounds_left[0] = rounds

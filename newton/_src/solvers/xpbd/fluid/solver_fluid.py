@@ -57,6 +57,7 @@ from .diffuse import (
 )
 from .neighbors import FluidNeighborSearch, neighbor_list_layout
 from .placement import (
+    EAGER_RELAXATION_ROUNDS,
     RELAXATION_PASSES,
     RELAXATION_ROUNDS,
     clear_placement,
@@ -249,10 +250,11 @@ class FluidSolver:
         with wp.ScopedDevice(self.device):
             rows = int(model.world_count) + 1
             self.placed = wp.ones(rows, dtype=wp.int32)
+            self.any_placed = wp.ones(1, dtype=wp.int32)
             self.relaxing = wp.zeros(rows, dtype=wp.int32)
             self.any_relaxing = wp.zeros(1, dtype=wp.int32)
             self.placement_packed = wp.zeros(rows, dtype=wp.int32)
-            self.placement_rounds_left = wp.full(1, RELAXATION_ROUNDS, dtype=wp.int32)
+            self.placement_rounds_left = wp.zeros(1, dtype=wp.int32)
         # (every shape that collides with particles, dynamic bodies' held where they are: fluid placed in a
         # body is moved out of it, positions only, rather than thrown out by its contacts)
         self.placement_guard = ContinuousCollision.build(model, dynamic=True) if config.fluid_relax_overpacked else None
@@ -346,7 +348,9 @@ class FluidSolver:
             self.device.stream.wait_stream(self.side_stream)
             self._side_pending = False
 
-    def build_neighborhood(self, particle_q: wp.array, particle_q_start=None, particle_qd=None, body_q=None) -> None:
+    def build_neighborhood(
+        self, particle_q: wp.array, particle_q_start=None, particle_qd=None, body_q=None, allocation_free: bool = False
+    ) -> None:
         """Sort the fluid at ``particle_q`` and list its neighbours.
 
         After prediction (``particle_q_start`` and ``particle_qd`` given) each fluid particle's travel
@@ -354,7 +358,9 @@ class FluidSolver:
         static walls of the step's contacts are listed for each slot by the same launch as the
         neighbours (a build for diagnostics or rendering lists no walls: the contacts belong to a step).
         In a step, the sort and the scan run beside upstream's work up to the first density pass
-        (particle-shape contacts, which only read the positions): :meth:`beside`.
+        (particle-shape contacts, which only read the positions): :meth:`beside`. With
+        ``allocation_free`` the sort's prefix sum allocates nothing (the relaxation's builds, which run in
+        the bodies of conditional nodes).
         """
         self._join()
         m, contacts = self.model, self.contacts
@@ -374,7 +380,7 @@ class FluidSolver:
         # (the travel limit writes the positions upstream goes on with: not beside it)
         s.compute_keys(particle_q, m.particle_flags, m.particle_world, self.params, particle_q_start, particle_qd)
         with self.beside() if particle_q_start is not None else contextlib.nullcontext():
-            s.sort(particle_q, m.particle_mass, m.particle_world)
+            s.sort(particle_q, m.particle_mass, m.particle_world, allocation_free=allocation_free)
             s.scan(walls)
         # the build gathered these positions into slot order: the first iteration uses them as they are
         self.slot_content = SlotContent.BUILT
@@ -671,7 +677,7 @@ class FluidSolver:
         m = self.model
         shapes = self._hold_placement_guard(m.body_q, m.body_qd)
         self.build_neighborhood(particle_q)
-        self._check_placed_worlds(shapes)
+        self._check_placed_worlds(shapes, RELAXATION_ROUNDS)
         self.slot_content = SlotContent.STALE
         found = bool(self.any_relaxing.numpy()[0])
         # the step finds them again and counts them for the report; without them no world waits for a check
@@ -680,6 +686,7 @@ class FluidSolver:
         self.reports.overpacked.zero_()
         if not found:
             self.placed.zero_()
+            self.any_placed.zero_()
         return found
 
     def _hold_placement_guard(self, body_q, body_qd) -> GuardedShapes:
@@ -701,8 +708,9 @@ class FluidSolver:
             device=self.device,
         )
 
-    def _check_placed_worlds(self, shapes: GuardedShapes) -> None:
-        """After a build: mark the placed worlds whose fluid is over-packed or inside a shape as relaxing."""
+    def _check_placed_worlds(self, shapes: GuardedShapes, rounds: int) -> None:
+        """After a build: mark the placed worlds whose fluid is over-packed or inside a shape as relaxing (for
+        at most ``rounds`` rounds)."""
         # (the fluid's own sum: a lattice at rest reads rest density however close to a wall it was placed)
         self.evaluate_constraint(self.always_active)
         self._list_shape_walls(shapes, self.placed, self.always_active)
@@ -717,8 +725,15 @@ class FluidSolver:
                 int(m.world_count),
                 self.placed,
                 self.search.values,
+                rounds,
             ],
-            outputs=[self.relaxing, self.any_relaxing, self.reports.overpacked, self.last_finite_q],
+            outputs=[
+                self.relaxing,
+                self.any_relaxing,
+                self.placement_rounds_left,
+                self.reports.overpacked,
+                self.last_finite_q,
+            ],
             device=self.device,
         )
 
@@ -726,21 +741,39 @@ class FluidSolver:
         """Move the over-packed fluid of the worlds placed since the last step apart, positions only (:mod:`.placement`).
 
         Nothing (no launch) unless the construction found the initial fluid over-packed or a reset
-        restored positions since the last step. Every round is launched (no synchronisation); those
-        after the last world was relaxed return at once, but for their neighbour builds.
+        restored positions since the last step. In a CUDA graph and on the CPU the check runs only if
+        a world was placed, and the rounds are a conditional loop that stops at the last relaxing
+        world; a CUDA step without a graph launches every round of :data:`EAGER_RELAXATION_ROUNDS`
+        (no synchronisation): those after the last world stopped return at once, but for their
+        neighbour builds.
         """
         if not self.placement_pending:
             return
         self.placement_pending = False
-        m = self.model
+        self._join()
         shapes = self._hold_placement_guard(state.body_q, state.body_qd)
-        self.build_neighborhood(state.particle_q)
+        if self.device.is_capturing or self.device.is_cpu:
+            # (conditional bodies may not allocate: their neighbour builds sort with the allocation-free sum)
+            wp.capture_if(self.any_placed, self._check_placement, state=state, shapes=shapes, rounds=RELAXATION_ROUNDS)
+            wp.capture_while(self.any_relaxing, self._relaxation_round, state=state, shapes=shapes)
+            wp.capture_if(self.any_placed, self._finish_placement, state=state)
+        else:
+            self._check_placement(state, shapes, EAGER_RELAXATION_ROUNDS)
+            for _ in range(EAGER_RELAXATION_ROUNDS):
+                self._relaxation_round(state, shapes)
+            self._finish_placement(state)
+        self.slot_content = SlotContent.STALE
+
+    def _check_placement(self, state, shapes: GuardedShapes, rounds: int) -> None:
+        """Check the placed worlds and run the first round of the relaxation on the check's neighbour build."""
+        self.build_neighborhood(state.particle_q, allocation_free=True)
         # (lists the walls of every placed world, the relaxing ones among them)
-        self._check_placed_worlds(shapes)
-        # (a fixed count of launches: a conditional loop would do only the rounds needed, but a CUDA
-        # conditional body may not allocate, and the neighbour sort's prefix sum does)
-        for r in range(RELAXATION_ROUNDS + 1):
-            self._relaxation_round(state, shapes, first=r == 0)
+        self._check_placed_worlds(shapes, rounds)
+        self._relaxation_round(state, shapes, first=True)
+
+    def _finish_placement(self, state) -> None:
+        """The step's contacts of the moved particles found again; the placement forgotten."""
+        m = self.model
         c = self.contacts
         if c is not None and getattr(c, "soft_contact_count", None) is not None and c.soft_contact_max:
             wp.launch(
@@ -768,18 +801,16 @@ class FluidSolver:
         wp.launch(
             clear_placement,
             dim=self.placed.shape[0],
-            inputs=[RELAXATION_ROUNDS],
-            outputs=[self.placed, self.relaxing, self.any_relaxing, self.placement_rounds_left],
+            outputs=[self.placed, self.any_placed, self.relaxing, self.any_relaxing],
             device=self.device,
         )
-        self.slot_content = SlotContent.STALE
 
-    def _relaxation_round(self, state, shapes: GuardedShapes, first: bool) -> None:
+    def _relaxation_round(self, state, shapes: GuardedShapes, first: bool = False) -> None:
         """One round of the relaxation: a neighbour build (but in the first), the check that stops relaxed worlds, passes."""
         m = self.model
         rows = int(m.world_count)
         if not first:
-            self.build_neighborhood(state.particle_q)
+            self.build_neighborhood(state.particle_q, allocation_free=True)
             self._list_shape_walls(shapes, self.relaxing, self.any_relaxing)
         self.evaluate_constraint(self.any_relaxing)
         wp.launch(
@@ -901,7 +932,7 @@ class FluidSolver:
                 mark_placed_worlds,
                 dim=self.placed.shape[0],
                 inputs=[mask, use_mask],
-                outputs=[self.placed],
+                outputs=[self.placed, self.any_placed],
                 device=self.device,
             )
             self.placement_pending = True
