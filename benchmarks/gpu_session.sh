@@ -187,18 +187,28 @@ for what in "$@"; do
     worlds)
       # batched worlds: env-steps/s against world count (docs/batched.rst, docs/images/batched_worlds.png)
       bw="python3 -W ignore -m benchmarks batched_worlds"
-      $bw --scene pouring --worlds 1 16 256 1024 4096 --per-world 1000 --frames 30 --warmup 5 --task-frames 220 \
+      $bw --scene pouring --worlds 1 16 256 1024 4096 --per-world 1000 --frames 20 --warmup 5 \
         --json "$out/batched_pouring_1000_${gpu}.json" 2>&1 | grep -v '^Module'
-      $bw --scene pouring --worlds 4096 --per-world 1000 --collide-every 2 --frames 30 --warmup 5 --task-frames 220 \
+      $bw --scene pouring --worlds 4096 --per-world 1000 --frames 20 --warmup 5 --task-frames 220 \
+        --json "$out/batched_pouring_1000_4096_task_${gpu}.json" 2>&1 | grep -v '^Module'
+      $bw --scene pouring --worlds 4096 --per-world 1000 --collide-every 2 --frames 20 --warmup 5 --task-frames 220 \
         --json "$out/batched_pouring_1000_k2_${gpu}.json" 2>&1 | grep -v '^Module'
       $bw --scene pouring --worlds 1 16 256 1024 --per-world 4000 --frames 20 --warmup 5 \
         --json "$out/batched_pouring_4000_${gpu}.json" 2>&1 | grep -v '^Module'
-      $bw --scene multiworld --worlds 16 256 1024 4096 --per-world 1000 --frames 20 --warmup 5 \
+      $bw --scene pouring --worlds 4096 --per-world 4000 --frames 10 --warmup 3 \
+        --json "$out/batched_pouring_4000_4096_${gpu}.json" 2>&1 | grep -v '^Module'
+      $bw --scene multiworld --worlds 1 16 256 1024 4096 --per-world 1000 --frames 20 --warmup 5 \
         --json "$out/batched_multiworld_1000_${gpu}.json" 2>&1 | grep -v '^Module'
+      $bw --scene multiworld --worlds 1 16 256 1024 --per-world 4000 --frames 20 --warmup 5 \
+        --json "$out/batched_multiworld_4000_${gpu}.json" 2>&1 | grep -v '^Module'
+      $bw --scene multiworld --worlds 4096 --per-world 4000 --frames 10 --warmup 3 \
+        --json "$out/batched_multiworld_4000_4096_${gpu}.json" 2>&1 | grep -v '^Module'
       $bw --scene pouring --worlds 4096 --per-world 1000 --frames 10 --warmup 5 --breakdown --top 14 \
         --json "$out/batched_pouring_breakdown_${gpu}.json" 2>&1 | grep -v '^Module'
-      $bw --from-json "$out"/batched_pouring_1000_${gpu}.json "$out"/batched_pouring_1000_k2_${gpu}.json \
-        "$out"/batched_pouring_4000_${gpu}.json "$out"/batched_multiworld_1000_${gpu}.json --plot "$out/batched_worlds.png" ;;
+      $bw --from-json "$out"/batched_pouring_1000_${gpu}.json "$out"/batched_pouring_4000_${gpu}.json \
+        "$out"/batched_pouring_4000_4096_${gpu}.json "$out"/batched_pouring_1000_k2_${gpu}.json \
+        "$out"/batched_multiworld_1000_${gpu}.json "$out"/batched_multiworld_4000_${gpu}.json \
+        "$out"/batched_multiworld_4000_4096_${gpu}.json --plot "$out/batched_worlds.png" ;;
     gallery)
       # every example captured at its default particle count (1280x720, 30 fps from 60 Hz), its last frame kept:
       # the stills of docs/gallery.rst and the capture throughput of docs/archive/performance_notebook.md.
