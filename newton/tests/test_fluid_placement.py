@@ -157,30 +157,47 @@ def test_reset_to_a_packed_state_relaxes_that_world(test, device):
     test.assertTrue(any("placed more than 10 %" in m for m in messages), messages)
 
 
+def inside_static_shape(kind, q, centre, half):
+    """Whether each centre of ``q`` is inside the static shape of :func:`test_fluid_placed_inside_a_static_shape_moves_out`."""
+    local = q - centre
+    if kind == "cylinder":
+        return (np.linalg.norm(local[:, :2], axis=1) < half) & (np.abs(local[:, 2]) < half)
+    return np.all(np.abs(local) < half, axis=1)
+
+
 def test_fluid_placed_inside_a_static_shape_moves_out(test, device):
-    builder = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))
-    add_packed_block(builder, 1.0)
-    add_closed_box(builder, EDGE, HEIGHT, thickness=2.0 * D)
-    # a static box in the middle of the block: 2 x 2 x 3 of its particles start inside it
-    cfg = newton.ModelBuilder.ShapeConfig(mu=0.0)
+    # a static box, a watertight triangle-mesh box and a cylinder in the middle of a block at its rest spacing
     centre, half = np.array([0.5 * EDGE, 0.5 * EDGE, 0.25]), 0.12
-    builder.add_shape_box(
-        -1, xform=wp.transform(wp.vec3(*centre), wp.quat_identity()), hx=half, hy=half, hz=half, cfg=cfg
-    )
-    model = builder.finalize(device=device)
-    model.soft_contact_mu = 0.0
-    q0 = model.particle_q.numpy()
-    test.assertEqual(int(np.all(np.abs(q0 - centre) < half, axis=1).sum()), 12)
-    sim = Sim(model, substeps=8, contacts=True)
-    test.assertTrue(sim.solver._fluid.initial_overpacked)
-    sim.step(1)
-    q = sim.q()
-    # every centre is out of the box and the fluid moved there without being thrown
-    test.assertEqual(int(np.all(np.abs(q - centre) < half, axis=1).sum()), 0)
-    test.assertGreater(q.min(), 0.0)
-    test.assertLess(np.linalg.norm(sim.qd(), axis=1).max(), 1.5)
-    stats, _ = report(sim)
-    test.assertGreaterEqual(stats["overpacked_placed"], 12)
+    cfg = newton.ModelBuilder.ShapeConfig(mu=0.0)
+    xform = wp.transform(wp.vec3(*centre), wp.quat_identity())
+    shapes = {
+        "box": lambda b: b.add_shape_box(-1, xform=xform, hx=half, hy=half, hz=half, cfg=cfg),
+        "mesh": lambda b: b.add_shape_mesh(
+            -1, xform=xform, mesh=newton.Mesh.create_box(half, duplicate_vertices=False), cfg=cfg
+        ),
+        "cylinder": lambda b: b.add_shape_cylinder(-1, xform=xform, radius=half, half_height=half, cfg=cfg),
+    }
+    for kind, add_shape in shapes.items():
+        with test.subTest(shape=kind):
+            builder = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))
+            add_packed_block(builder, 1.0)
+            add_closed_box(builder, EDGE, HEIGHT, thickness=2.0 * D)
+            add_shape(builder)
+            model = builder.finalize(device=device)
+            model.soft_contact_mu = 0.0
+            placed_inside = int(inside_static_shape(kind, model.particle_q.numpy(), centre, half).sum())
+            test.assertGreaterEqual(placed_inside, 8)
+            sim = Sim(model, substeps=8, contacts=True)
+            # (the block is at its rest spacing: only the centres inside the shape make it a bad start)
+            test.assertTrue(sim.solver._fluid.initial_overpacked)
+            sim.step(1)
+            q = sim.q()
+            # every centre is out of the shape and the fluid moved there without being thrown
+            test.assertEqual(int(inside_static_shape(kind, q, centre, half).sum()), 0)
+            test.assertGreater(q.min(), 0.0)
+            test.assertLess(np.linalg.norm(sim.qd(), axis=1).max(), 1.5)
+            stats, _ = report(sim)
+            test.assertGreaterEqual(stats["overpacked_placed"], placed_inside)
 
 
 def test_fluid_placed_inside_a_dynamic_body_moves_out(test, device):
@@ -284,6 +301,23 @@ def test_deep_column_relaxes_in_a_conditional_loop(test, device):
     test.assertGreater(np.linalg.norm(short.qd(), axis=1).max(), 5.0)
     _, messages = report(short)
     test.assertTrue(any("were still packed" in m for m in messages), messages)
+
+
+def test_open_mesh_has_no_inside(test, device):
+    # a sheet of two triangles through the block (not watertight): fluid on either side is outside it, so
+    # a block at its rest spacing is not a bad start (by the faces' normals, the lower half would be inside)
+    builder = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))
+    add_packed_block(builder, 1.0)
+    add_closed_box(builder, EDGE, HEIGHT, thickness=2.0 * D)
+    z = 2.0 * D
+    points = np.array([[0.0, 0.0, z], [EDGE, 0.0, z], [EDGE, EDGE, z], [0.0, EDGE, z]], dtype=np.float32)
+    sheet = newton.Mesh(points, np.array([0, 1, 2, 0, 2, 3], dtype=np.int32), compute_inertia=False, is_solid=False)
+    test.assertFalse(sheet.is_watertight)
+    builder.add_shape_mesh(-1, mesh=sheet, cfg=newton.ModelBuilder.ShapeConfig(mu=0.0))
+    model = builder.finalize(device=device)
+    test.assertTrue(np.any(model.particle_q.numpy()[:, 2] < z))
+    sim = Sim(model, substeps=8, contacts=True)
+    test.assertFalse(sim.solver._fluid.initial_overpacked)
 
 
 class TestFluidPlacement(unittest.TestCase):

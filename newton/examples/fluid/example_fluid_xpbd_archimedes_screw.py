@@ -38,6 +38,7 @@ SCREW_LENGTH = 1.05  # [m]
 TUBE_RADIUS = 0.1  # inner radius [m]
 TUBE_WALL = 0.015  # [m]
 SHAFT_RADIUS = 0.025  # [m]
+SHAFT_OVERHANG = 0.03  # the shaft's reach below the tube's lower end [m]
 PITCH = 0.2  # axial advance of the blade per turn [m]
 BLADE_THICKNESS = 0.012  # [m]
 TURNS_PER_SECOND = 2.0
@@ -119,7 +120,9 @@ class Example(FluidExample):
         along = rel @ self.axis
         radial = np.linalg.norm(rel - np.outer(along, self.axis), axis=1)
         in_tube = (along > -0.5 * d) & (radial < TUBE_RADIUS + TUBE_WALL + 0.5 * d)
-        pts = pts[~in_tube]
+        # (the shaft reaches SHAFT_OVERHANG below the tube)
+        on_shaft = (along > -SHAFT_OVERHANG - 0.5 * d) & (radial < SHAFT_RADIUS + 0.5 * d)
+        pts = pts[~(in_tube | on_shaft)]
         builder.add_particles(
             pos=[wp.vec3(*p) for p in pts],
             vel=[wp.vec3(0.0)] * len(pts),
@@ -153,7 +156,7 @@ class Example(FluidExample):
             self.screw,
             xform=wp.transform(wp.vec3(0.0, 0.0, 0.5 * SCREW_LENGTH), wp.quat_identity()),
             radius=SHAFT_RADIUS,
-            half_height=0.5 * SCREW_LENGTH + 0.03,
+            half_height=0.5 * SCREW_LENGTH + SHAFT_OVERHANG,
             cfg=kin,
         )
         blade = helical_blade(0.5 * SHAFT_RADIUS, TUBE_RADIUS - 0.004, PITCH, SCREW_LENGTH - 0.02, BLADE_THICKNESS)

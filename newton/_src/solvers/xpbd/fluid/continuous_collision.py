@@ -63,6 +63,7 @@ class GuardedShapes:
     shape_type: wp.array[wp.int32]
     shape_scale: wp.array[wp.vec3]
     shape_source: wp.array[wp.uint64]
+    shape_solid: wp.array[wp.int32]  # 1 for a watertight mesh: inside it is inside (an open one has two sides)
     shape_transform: wp.array[wp.transform]
     shape_body: wp.array[wp.int32]
     body_q: wp.array[wp.transform]  # body poses at the end of the substep
@@ -375,6 +376,56 @@ def shape_distance(shape_type: int, scale: wp.vec3, p: wp.vec3):
     return wp.vec4(0.0, 0.0, 1.0, 1.0e10)
 
 
+@wp.func
+def cylinder_distance(scale: wp.vec3, p: wp.vec3):
+    """Signed distance [m] (xyz: outward normal, w: distance) of local ``p`` to a straight cylinder along z
+    (radius ``scale[0]``, half height ``scale[1]``)."""
+    radial = wp.vec3(p[0], p[1], 0.0)
+    r = wp.length(radial)
+    side = wp.where(r > 0.0, radial / wp.max(r, 1.0e-12), wp.vec3(1.0, 0.0, 0.0))
+    cap = wp.vec3(0.0, 0.0, wp.where(p[2] >= 0.0, 1.0, -1.0))
+    dr = r - scale[0]
+    dz = wp.abs(p[2]) - scale[1]
+    if dr > 0.0 and dz > 0.0:
+        # beyond the rim: the rim's nearest point
+        v = dr * side + dz * cap
+        d = wp.length(v)
+        n = v / d
+        return wp.vec4(n[0], n[1], n[2], d)
+    if dr > dz:
+        return wp.vec4(side[0], side[1], side[2], dr)
+    return wp.vec4(cap[0], cap[1], cap[2], dz)
+
+
+@wp.func
+def surface_distance(shape_type: int, scale: wp.vec3, source: wp.uint64, solid: int, p: wp.vec3, reach: float):
+    """:func:`shape_distance` for straight cylinders and triangle meshes too (``source`` the mesh, looked for
+    within ``reach`` [m]). A watertight mesh (``solid``) is signed by its angle-weighted normals; an open one
+    has no inside, and its normal points to ``p``'s side. Barrel cylinders, cones and heightfields, and
+    meshes farther than ``reach``, read as far away (1e10 m)."""
+    if shape_type == GeoType.CYLINDER:
+        if scale[2] != 0.0:
+            return wp.vec4(0.0, 0.0, 1.0, 1.0e10)
+        return cylinder_distance(scale, p)
+    if shape_type == GeoType.MESH or shape_type == GeoType.CONVEX_MESH:
+        smallest = wp.min(wp.min(wp.abs(scale[0]), wp.abs(scale[1])), wp.abs(scale[2]))
+        q = wp.mesh_query_point_sign_normal(source, wp.cw_div(p, scale), reach / smallest)
+        if not q.result:
+            return wp.vec4(0.0, 0.0, 1.0, 1.0e10)
+        sign = wp.where(solid != 0, q.sign, 1.0)
+        closest = wp.cw_mul(wp.mesh_eval_position(source, q.face, q.u, q.v), scale)
+        offset = p - closest
+        d = wp.length(offset)
+        n = wp.vec3()
+        if d > 1.0e-9:
+            n = sign * offset / d
+        else:
+            # on the surface: the face's normal, through the scale
+            n = wp.normalize(wp.cw_div(wp.mesh_eval_face_normal(source, q.face), scale))
+        return wp.vec4(n[0], n[1], n[2], sign * d)
+    return shape_distance(shape_type, scale, p)
+
+
 @wp.kernel
 def stop_fluid_paths_at_shapes(
     shapes: GuardedShapes,
@@ -498,6 +549,16 @@ def local_bounds(shape_type: int, scale: np.ndarray, source) -> np.ndarray:
     return np.stack([-half, half])
 
 
+def watertight_meshes(model) -> np.ndarray:
+    """Per shape of ``model``: 1 for a watertight triangle mesh (its inside is an inside), else 0."""
+    kinds = model.shape_type.numpy()
+    solid = np.zeros(max(model.shape_count, 1), dtype=np.int32)
+    for s in np.flatnonzero((kinds == int(GeoType.MESH)) | (kinds == int(GeoType.CONVEX_MESH))):
+        source = model.shape_source[s]
+        solid[s] = int(source is not None and bool(source.is_watertight))
+    return solid
+
+
 class ContinuousCollision:
     """The shapes :func:`stop_fluid_paths_at_shapes` guards, per world, and its launch.
 
@@ -524,6 +585,7 @@ class ContinuousCollision:
         s.shape_type = model.shape_type
         s.shape_scale = model.shape_scale
         s.shape_source = model.shape_source_ptr
+        s.shape_solid = wp.array(watertight_meshes(model), dtype=wp.int32, device=d)
         s.shape_transform = model.shape_transform
         s.shape_body = model.shape_body
         #: whether a guarded shape is on a (kinematic) body

@@ -44,7 +44,7 @@ device and reported, with a warning, by the next ``fluid_diagnostics`` call.
 import warp as wp
 
 from ....geometry import ParticleFlags
-from .continuous_collision import GuardedShapes, first_shape_entry, shape_distance, shape_poses
+from .continuous_collision import GuardedShapes, first_shape_entry, shape_poses, surface_distance
 from .density_constraint import CorrectionSlot, density_correction_sum, relaxed_correction
 from .sph import FluidParams, FluidSlots
 from .walls import WALL_CONTACTS_PER_SLOT
@@ -168,8 +168,8 @@ def list_shape_walls(
     For the slots of the worlds ``listed`` selects (the placed ones, then the relaxing ones) while
     ``any_listed[0]`` is set.
     What a step lists from upstream's contacts (:func:`~.walls.list_wall_contact`), found here from
-    the shapes themselves (:func:`~.continuous_collision.shape_distance`: planes, spheres, capsules and
-    boxes), since the contacts of the step were found at the packed positions.
+    the shapes themselves (:func:`~.continuous_collision.surface_distance`: planes, spheres, capsules,
+    boxes, straight cylinders and meshes), since the contacts of the step were found at the packed positions.
     """
     i = wp.tid()
     pi = slots.particle[i]
@@ -199,7 +199,9 @@ def list_shape_walls(
             continue
         start, pose = shape_poses(shapes, s)
         local = wp.transform_point(wp.transform_inverse(pose), x)
-        hit = shape_distance(shapes.shape_type[s], shapes.shape_scale[s], local)
+        hit = surface_distance(
+            shapes.shape_type[s], shapes.shape_scale[s], shapes.shape_source[s], shapes.shape_solid[s], local, h
+        )
         if hit[3] >= h or count >= WALL_CONTACTS_PER_SLOT:
             continue
         normal = wp.transform_vector(pose, wp.vec3(hit[0], hit[1], hit[2]))
@@ -377,6 +379,8 @@ def refresh_relaxed_contacts(
     placed: wp.array[wp.int32],
     shape_type: wp.array[wp.int32],
     shape_scale: wp.array[wp.vec3],
+    shape_source: wp.array[wp.uint64],
+    shape_solid: wp.array[wp.int32],
     shape_transform: wp.array[wp.transform],
     shape_body: wp.array[int],
     body_q: wp.array[wp.transform],
@@ -389,9 +393,9 @@ def refresh_relaxed_contacts(
     They were found at the packed positions: a particle moved out of a box through another face than
     the one its contact names would be pushed back through the box. Each such contact becomes the
     plane at the shape's surface point nearest to where the particle is now
-    (:func:`~.continuous_collision.shape_distance`); for a shape it does not measure (a mesh, a
-    cylinder) the plane is put a metre behind the particle, out of reach for the step (the next
-    collision finds it again; continuous collision, when on, keeps the fluid out of static and kinematic meshes meanwhile).
+    (:func:`~.continuous_collision.surface_distance`); for a shape it does not measure (a cone, a
+    heightfield) the plane is put a metre behind the particle, out of reach for the step (the next
+    collision finds it again).
     """
     k = wp.tid()
     if k >= wp.min(contact_count[0], contact_max):
@@ -408,7 +412,8 @@ def refresh_relaxed_contacts(
         body = body_q[b]
     pose = body * shape_transform[s]
     x = particle_q[pi]
-    hit = shape_distance(shape_type[s], shape_scale[s], wp.transform_point(wp.transform_inverse(pose), x))
+    local = wp.transform_point(wp.transform_inverse(pose), x)
+    hit = surface_distance(shape_type[s], shape_scale[s], shape_source[s], shape_solid[s], local, 1.0e6)
     normal = contact_normal[k]
     surface = x - normal
     if hit[3] < 1.0e9:

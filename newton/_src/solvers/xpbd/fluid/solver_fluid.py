@@ -35,7 +35,7 @@ from .config import (
     free_memory,
     real_in_range,
 )
-from .continuous_collision import GUARD_ROUNDS, ContinuousCollision, GuardedShapes, still_shapes
+from .continuous_collision import GUARD_ROUNDS, ContinuousCollision, GuardedShapes, still_shapes, watertight_meshes
 from .density_constraint import (
     APPLY_ADVANCE,
     APPLY_AS_XPBD,
@@ -258,6 +258,12 @@ class FluidSolver:
         # (every shape that collides with particles, dynamic bodies' held where they are: fluid placed in a
         # body is moved out of it, positions only, rather than thrown out by its contacts)
         self.placement_guard = ContinuousCollision.build(model, dynamic=True) if config.fluid_relax_overpacked else None
+        # (which meshes have an inside, for the contacts the relaxation finds again)
+        self.shape_solid = (
+            self.placement_guard.shapes.shape_solid
+            if self.placement_guard is not None
+            else wp.array(watertight_meshes(model), dtype=wp.int32, device=self.device)
+        )
         # the second stream (see FluidTuning.concurrent_passes), and whether work on it has not been joined yet
         concurrent = self.device.is_cuda and self.tuning.concurrent_passes
         self.side_stream = wp.Stream(self.device) if concurrent else None
@@ -791,6 +797,8 @@ class FluidSolver:
                     self.placed,
                     m.shape_type,
                     m.shape_scale,
+                    m.shape_source_ptr,
+                    self.shape_solid,
                     m.shape_transform,
                     m.shape_body,
                     state.body_q if state.body_q is not None else self._no_bodies,
