@@ -554,8 +554,7 @@ def watertight_meshes(model) -> np.ndarray:
     kinds = model.shape_type.numpy()
     solid = np.zeros(max(model.shape_count, 1), dtype=np.int32)
     for s in np.flatnonzero((kinds == int(GeoType.MESH)) | (kinds == int(GeoType.CONVEX_MESH))):
-        source = model.shape_source[s]
-        solid[s] = int(source is not None and bool(source.is_watertight))
+        solid[s] = int(bool(getattr(model.shape_source[s], "is_watertight", False)))
     return solid
 
 
