@@ -63,7 +63,9 @@ class GuardedShapes:
     shape_type: wp.array[wp.int32]
     shape_scale: wp.array[wp.vec3]
     shape_source: wp.array[wp.uint64]
-    shape_solid: wp.array[wp.int32]  # 1 for a watertight mesh: inside it is inside (an open one has two sides)
+    # 1 for a watertight mesh: inside it is inside (an open one has two sides); measured for the placement's
+    # guard only (one zero otherwise: the paths' intersection needs no inside)
+    shape_solid: wp.array[wp.int32]
     shape_transform: wp.array[wp.transform]
     shape_body: wp.array[wp.int32]
     body_q: wp.array[wp.transform]  # body poses at the end of the substep
@@ -339,6 +341,12 @@ def stop_inward(v: wp.vec3, normal: wp.vec3, v_wall: wp.vec3):
 
 
 @wp.func
+def world_row(world: int, world_count: int):
+    """Row of a world in the per-world arrays: its index, and ``world_count`` for the global world -1."""
+    return wp.where(world >= 0 and world < world_count, world, world_count)
+
+
+@wp.func
 def shape_distance(shape_type: int, scale: wp.vec3, p: wp.vec3):
     """Signed distance [m] (xyz: outward normal in the shape frame, w: distance) of local point ``p``.
 
@@ -453,8 +461,7 @@ def stop_fluid_paths_at_shapes(
     pi = fluid_particle[wp.tid()]
     if (particle_flags[pi] & ParticleFlags.ACTIVE) == 0 or particle_inv_mass[pi] == 0.0:
         return
-    w = particle_world[pi]
-    row = wp.where(w >= 0 and w < shapes.world_count, w, shapes.world_count)
+    row = world_row(particle_world[pi], shapes.world_count)
     lo = shapes.row_start[row]
     hi = shapes.row_start[row + 1]
     if lo == hi:
@@ -573,6 +580,7 @@ class ContinuousCollision:
         guarded: np.ndarray,
         local_bounds: np.ndarray,
         kinematic: bool,
+        solid: np.ndarray,
     ):
         d = model.device
         self.model = model
@@ -584,7 +592,7 @@ class ContinuousCollision:
         s.shape_type = model.shape_type
         s.shape_scale = model.shape_scale
         s.shape_source = model.shape_source_ptr
-        s.shape_solid = wp.array(watertight_meshes(model), dtype=wp.int32, device=d)
+        s.shape_solid = wp.array(solid, dtype=wp.int32, device=d)
         s.shape_transform = model.shape_transform
         s.shape_body = model.shape_body
         #: whether a guarded shape is on a (kinematic) body
@@ -608,7 +616,7 @@ class ContinuousCollision:
         """The guard of ``model``'s static and kinematic shapes that collide with particles, or ``None`` without any.
 
         With ``dynamic``, the shapes of dynamic bodies too (for moves that take no time, where a body is
-        held where it is: :mod:`.placement`).
+        held where it is: :mod:`.placement`), and which meshes are watertight (its test of a centre inside).
         """
         if not model.shape_count:
             return None
@@ -639,7 +647,9 @@ class ContinuousCollision:
         bounds = np.zeros((model.shape_count, 2, 3), dtype=np.float32)
         for s in index:
             bounds[s] = local_bounds(int(shape_type[s]), scale[s], model.shape_source[s])
-        return cls(model, np.array(rows), np.concatenate(shapes), index, bounds, bool((shape_body[index] >= 0).any()))
+        kinematic = bool((shape_body[index] >= 0).any())
+        solid = watertight_meshes(model) if dynamic else np.zeros(1, dtype=np.int32)
+        return cls(model, np.array(rows), np.concatenate(shapes), index, bounds, kinematic, solid)
 
     def _bound(self, body_q, body_qd) -> None:
         s = self.shapes

@@ -44,7 +44,7 @@ device and reported, with a warning, by the next ``fluid_diagnostics`` call.
 import warp as wp
 
 from ....geometry import ParticleFlags
-from .continuous_collision import GuardedShapes, first_shape_entry, shape_poses, surface_distance
+from .continuous_collision import GuardedShapes, first_shape_entry, shape_poses, surface_distance, world_row
 from .density_constraint import CorrectionSlot, density_correction_sum, relaxed_correction
 from .sph import FluidParams, FluidSlots
 from .walls import WALL_CONTACTS_PER_SLOT
@@ -77,12 +77,6 @@ RELAXATION_MOMENTUM = wp.constant(0.5)
 
 # placed[w] of a world whose fluid the step found over-packed (its contacts are refreshed after the relaxation)
 RELAXED = wp.constant(2)
-
-
-@wp.func
-def world_row(world: int, world_count: int):
-    """Row of a world in the per-world arrays: its index, and ``world_count`` for the global world -1."""
-    return wp.where(world >= 0 and world < world_count, world, world_count)
 
 
 @wp.kernel

@@ -35,7 +35,7 @@ from .config import (
     free_memory,
     real_in_range,
 )
-from .continuous_collision import GUARD_ROUNDS, ContinuousCollision, GuardedShapes, still_shapes, watertight_meshes
+from .continuous_collision import GUARD_ROUNDS, ContinuousCollision, GuardedShapes, still_shapes
 from .density_constraint import (
     APPLY_ADVANCE,
     APPLY_AS_XPBD,
@@ -258,11 +258,12 @@ class FluidSolver:
         # (every shape that collides with particles, dynamic bodies' held where they are: fluid placed in a
         # body is moved out of it, positions only, rather than thrown out by its contacts)
         self.placement_guard = ContinuousCollision.build(model, dynamic=True) if config.fluid_relax_overpacked else None
-        # (which meshes have an inside, for the contacts the relaxation finds again)
+        # (which meshes have an inside, for the contacts the relaxation finds again; without a guard no mesh
+        # meets particles, or nothing relaxes)
         self.shape_solid = (
             self.placement_guard.shapes.shape_solid
             if self.placement_guard is not None
-            else wp.array(watertight_meshes(model), dtype=wp.int32, device=self.device)
+            else wp.zeros(max(model.shape_count, 1), dtype=wp.int32, device=self.device)
         )
         # the second stream (see FluidTuning.concurrent_passes), and whether work on it has not been joined yet
         concurrent = self.device.is_cuda and self.tuning.concurrent_passes
