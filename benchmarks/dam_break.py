@@ -152,7 +152,7 @@ def graph_ms(device, body, replays: int = 30) -> float:
 def run(args) -> dict:
     device = wp.get_device(args.device)
     builder = newton.ModelBuilder()
-    scene = add_dam_break(builder, args.particles, obstacles=False, jitter=0.1)
+    scene = add_dam_break(builder, args.particles, obstacles=False, jitter=0.1, terrain_bump=args.terrain_bump)
     model = builder.finalize(device=device)
     spacing = scene["spacing"]
     frame_dt = 1.0 / 60.0
@@ -246,6 +246,7 @@ def run(args) -> dict:
         "diffuse_emitted": int(solver.diffuse_emitted_count.numpy()[0]) if solver.max_diffuse_particles else 0,
         "speed_clamp_radii_per_substep": args.speed_clamp,
         "fluid_continuous_collision": solver.fluid_continuous_collision,
+        "terrain_bump_spacings": args.terrain_bump,
         "shape_entries_stopped": stats["shape_entries_stopped"],
         "cuda_graph": graph is not None,
         "scan_lanes": args.scan_lanes or "solver's choice",
@@ -272,6 +273,12 @@ def main(argv=None):
         action="store_true",
         help="run every fluid pass on the step's stream (default on CUDA: the sort, scan and next density pass "
         "on a second stream beside upstream's work)",
+    )
+    parser.add_argument(
+        "--terrain-bump",
+        type=float,
+        default=0.0,
+        help="a heightfield floor (cells of two spacings, random heights up to this many spacings) for the ground plane",
     )
     parser.add_argument("--warmup-frames", type=int, default=60)
     parser.add_argument("--frames", type=int, default=30, help="frames per timed trial")

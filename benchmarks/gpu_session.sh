@@ -96,6 +96,12 @@ for what in "$@"; do
         tag=${v//[ -.]/_}; echo "== 100k $v"
         python3 -m benchmarks dam_break $v --trials 5 --json "$out/dam_break_100k_collision${tag}_${gpu}.json" 2>&1 | grep -A2 "^device"
       done
+      # a heightfield floor for the ground plane (docs/performance/collision/), with and without the guard
+      for v in "" "--no-continuous-collision"; do
+        tag=${v//[ -.]/_}; echo "== 100k terrain $v"
+        python3 -m benchmarks dam_break --terrain-bump 0.5 $v --trials 3 \
+          --json "$out/dam_break_100k_terrain${tag}_${gpu}.json" 2>&1 | grep -A2 "^device"
+      done
       python3 -m pytest -q -k cuda newton/tests/test_fluid_continuous_collision.py 2>&1 | tail -5 ;;
     ncu)
       ncu --kernel-name regex:'build_fluid|compute_fluid_density|apply_fluid_density|apply_fluid_visc' \

@@ -21,7 +21,9 @@ from newton._src.solvers.xpbd.fluid.continuous_collision import (
     ContinuousCollision,
     GuardedShapes,
     segment_entry,
+    shape_entry,
     shape_poses,
+    surface_distance,
 )
 from newton.examples.fluid.common import add_closed_tank, revolved_container
 from newton.examples.fluid.example_fluid_xpbd_sdf_container import FILL, RIM, WALL, inner_radius
@@ -57,6 +59,9 @@ def inside(shape_type, scale, p):
         return (np.hypot(x, y) <= scale[0]) & (np.abs(z) <= scale[1])
     if shape_type == newton.GeoType.CAPSULE:
         return np.linalg.norm(p - np.stack([0 * x, 0 * y, np.clip(z, -scale[1], scale[1])], axis=1), axis=1) <= scale[0]
+    if shape_type == newton.GeoType.CONE:
+        # base of radius scale[0] at -scale[1], apex at +scale[1]
+        return (z >= -scale[1]) & (z <= scale[1]) & (np.hypot(x, y) <= scale[0] * (scale[1] - z) / (2.0 * scale[1]))
     if shape_type == newton.GeoType.PLANE:
         return z <= 0.0
     raise AssertionError(shape_type)
@@ -87,6 +92,7 @@ def test_path_entries_match_sampling(test, device):
         (newton.GeoType.ELLIPSOID, (0.8, 0.4, 0.6)),
         (newton.GeoType.CYLINDER, (0.5, 0.7, 0.0)),
         (newton.GeoType.CAPSULE, (0.4, 0.6, 0.0)),
+        (newton.GeoType.CONE, (0.8, 0.6, 0.0)),
         (newton.GeoType.PLANE, (0.0, 0.0, 0.0)),
     )
     with wp.ScopedDevice(device):
@@ -123,6 +129,78 @@ def test_path_entries_match_sampling(test, device):
         np.testing.assert_allclose(e[hit, 3], expected[hit], atol=3.0e-4)
         test.assertTrue(np.all(e[~hit, 3] == NO_ENTRY))
         test.assertTrue(np.all(np.einsum("ij,ij->i", e[hit, :3], (b - a)[hit]) < 0.0))
+
+
+def surface_height(field, hx, hy, min_z, max_z, x, y):
+    """Height [m] of a heightfield's surface over ``x``, ``y`` (numpy; the triangles upstream's contacts use)."""
+    nrow, ncol = field.shape
+    u = np.clip((x + hx) / (2.0 * hx) * (ncol - 1), 0.0, ncol - 1)
+    v = np.clip((y + hy) / (2.0 * hy) * (nrow - 1), 0.0, nrow - 1)
+    col = np.minimum(np.floor(u).astype(int), ncol - 2)
+    row = np.minimum(np.floor(v).astype(int), nrow - 2)
+    fx, fy = u - col, v - row
+    h00, h10 = field[row, col], field[row, col + 1]
+    h01, h11 = field[row + 1, col], field[row + 1, col + 1]
+    lower = h00 + fx * (h10 - h00) + fy * (h11 - h10)
+    upper = h00 + fy * (h01 - h00) + fx * (h11 - h01)
+    return min_z + np.where(fx >= fy, lower, upper) * (max_z - min_z)
+
+
+def rough_heightfield(rng, nrow=7, ncol=9, hx=0.9, hy=0.6):
+    """A random terrain of nrow x ncol heights over [-hx, hx] x [-hy, hy], between -0.4 and 0.5 m."""
+    return newton.Heightfield(rng.uniform(0.0, 1.0, (nrow, ncol)), nrow, ncol, hx=hx, hy=hy, min_z=-0.4, max_z=0.5)
+
+
+@wp.kernel
+def heightfield_entries_of_paths(
+    shapes: GuardedShapes,
+    s: int,
+    start: wp.array[wp.vec3],
+    end: wp.array[wp.vec3],
+    entries: wp.array[wp.vec4],
+):
+    i = wp.tid()
+    entries[i] = shape_entry(shapes, s, start[i], end[i] - start[i])
+
+
+def test_heightfield_entries_match_sampling(test, device):
+    """Paths into a random terrain: the first point below its surface (inside its footprint), from above it."""
+    rng = np.random.default_rng(11)
+    field = rough_heightfield(rng)
+    builder = newton.ModelBuilder()
+    builder.add_shape_heightfield(heightfield=field)
+    model = builder.finalize(device=device)
+    guard = ContinuousCollision.build(model)
+    n = 600
+    a = rng.uniform((-1.2, -0.9, -0.5), (1.2, 0.9, 0.8), (n, 3))
+    b = a + rng.uniform(-0.6, 0.6, (n, 3))
+    # long paths over many cells, and some straight down
+    b[:60] = rng.uniform((-1.2, -0.9, -0.5), (1.2, 0.9, 0.8), (60, 3))
+    b[60:100, :2] = a[60:100, :2]
+    out = wp.zeros(n, dtype=wp.vec4, device=device)
+    wp.launch(
+        heightfield_entries_of_paths,
+        dim=n,
+        inputs=[guard.shapes, 0, wp.array(a, dtype=wp.vec3, device=device), wp.array(b, dtype=wp.vec3, device=device)],
+        outputs=[out],
+        device=device,
+    )
+    e = out.numpy().astype(np.float64)
+    t = np.linspace(0.0, 1.0, 8001)
+    expected = np.full(n, np.inf)
+    for k in range(n):
+        pts = a[k] + t[:, None] * (b[k] - a[k])
+        over = (np.abs(pts[:, 0]) <= field.hx) & (np.abs(pts[:, 1]) <= field.hy)
+        below = over & (pts[:, 2] < surface_height(field.data, field.hx, field.hy, -0.4, 0.5, pts[:, 0], pts[:, 1]))
+        if not below[0] and below.any():
+            expected[k] = t[np.argmax(below)]
+    hit = np.isfinite(expected)
+    test.assertGreater(np.count_nonzero(hit), 100)
+    np.testing.assert_allclose(e[hit, 3], expected[hit], atol=2.0e-4)
+    test.assertTrue(np.all(e[~hit, 3] == NO_ENTRY))
+    normal = e[hit, :3]
+    np.testing.assert_allclose(np.linalg.norm(normal, axis=1), 1.0, atol=1.0e-4)
+    test.assertTrue(np.all(np.einsum("ij,ij->i", normal, (b - a)[hit]) < 0.0))
 
 
 @wp.kernel
@@ -210,6 +288,112 @@ def test_thrown_block_stays_in_tank(test, device):
     test.assertTrue(any("substep is too long" in m for m in warned), warned)
     outside, _ = run_thrown_block(device, 8, 8, fluid_continuous_collision=False)
     test.assertGreater(outside, 25)
+
+
+def cone_depth(scale, p):
+    """How deep [m] each point of ``p`` (N, 3) is inside the cone of ``scale`` (numpy, its frame; negative: outside):
+    the distance to the nearer of its base and its slanted side, in the half-plane of the point and the axis."""
+    r, hh = scale[0], scale[1]
+    q = np.stack([np.hypot(p[:, 0], p[:, 1]), p[:, 2]], axis=1)
+
+    def to_segment(a, b):
+        e = np.asarray(b, dtype=float) - a
+        s = np.clip(((q - a) @ e) / (e @ e), 0.0, 1.0)
+        return np.linalg.norm(q - (a + s[:, None] * e), axis=1)
+
+    distance = np.minimum(to_segment(np.array([0.0, -hh]), (r, -hh)), to_segment(np.array([r, -hh]), (0.0, hh)))
+    return np.where(inside(newton.GeoType.CONE, scale, p), distance, -distance)
+
+
+@wp.kernel
+def distances_of_points(shape_type: int, scale: wp.vec3, points: wp.array[wp.vec3], out: wp.array[wp.vec4]):
+    i = wp.tid()
+    out[i] = surface_distance(shape_type, scale, wp.uint64(0), 0, points[i], 1.0)
+
+
+def test_cone_and_ellipsoid_distances(test, device):
+    """The placement's measure of a cone is its exact signed distance; an ellipsoid's has the true sign."""
+    rng = np.random.default_rng(5)
+    p = rng.uniform(-1.2, 1.2, (2000, 3))
+    out = wp.zeros(len(p), dtype=wp.vec4, device=device)
+    points = wp.array(p, dtype=wp.vec3, device=device)
+    cone = (0.8, 0.6, 0.0)
+    wp.launch(
+        distances_of_points, dim=len(p), inputs=[int(newton.GeoType.CONE), wp.vec3(*cone), points, out], device=device
+    )
+    e = out.numpy().astype(np.float64)
+    np.testing.assert_allclose(e[:, 3], -cone_depth(cone, p), atol=1.0e-5)
+    np.testing.assert_allclose(np.linalg.norm(e[:, :3], axis=1), 1.0, atol=1.0e-4)
+    # the nearest surface point is where the normal says
+    outside = e[:, 3] > 1.0e-3
+    foot = p[outside] - e[outside, 3:4] * e[outside, :3]
+    np.testing.assert_allclose(cone_depth(cone, foot), 0.0, atol=1.0e-4)
+    axes = np.array([0.8, 0.4, 0.6])
+    wp.launch(
+        distances_of_points,
+        dim=len(p),
+        inputs=[int(newton.GeoType.ELLIPSOID), wp.vec3(*axes), points, out],
+        device=device,
+    )
+    e = out.numpy().astype(np.float64)
+    np.testing.assert_array_equal(e[:, 3] < 0.0, inside(newton.GeoType.ELLIPSOID, axes, p))
+    wp.launch(
+        distances_of_points,
+        dim=len(p),
+        inputs=[int(newton.GeoType.ELLIPSOID), wp.vec3(0.7), points, out],
+        device=device,
+    )
+    np.testing.assert_allclose(out.numpy()[:, 3], np.linalg.norm(p, axis=1) - 0.7, atol=1.0e-5)
+
+
+def thrown_onto(device, kind, substeps, **kwargs):
+    """The block of :func:`run_thrown_block` thrown at 20 m/s onto a static cone or a rough terrain on the tank's
+    floor: the most centres more than 0.3 spacings inside it at once, and the diagnostics."""
+    rng = np.random.default_rng(3)
+    builder = newton.ModelBuilder()
+    add_block(builder, (5, 5, 5), origin=(0.4, 0.4, 0.7), vel=(0.0, 0.0, -20.0), jitter=0.02 * D)
+    add_closed_tank(builder, TANK, thickness=2.0 * D)
+    cfg = newton.ModelBuilder.ShapeConfig(mu=0.0)
+    centre = np.array([0.5 * TANK, 0.5 * TANK, 0.3])
+    xform = wp.transform(wp.vec3(*centre), wp.quat_identity())
+    scale = (0.45, 0.3, 0.0)
+    field = newton.Heightfield(rng.uniform(0.0, 1.0, (5, 5)), 5, 5, hx=0.5 * TANK, hy=0.5 * TANK, min_z=0.0, max_z=0.4)
+    if kind == "cone":
+        builder.add_shape_cone(-1, xform=xform, radius=scale[0], half_height=scale[1], cfg=cfg)
+    else:
+        builder.add_shape_heightfield(xform=wp.transform(wp.vec3(*centre[:2], 0.0)), heightfield=field, cfg=cfg)
+    model = builder.finalize(device=device)
+    model.soft_contact_mu = 0.0
+    sim = Sim(model, substeps=substeps, contacts=True, **kwargs)
+    most = 0
+    for _ in range(20):
+        sim.step()
+        q = sim.q()
+        assert np.isfinite(q).all()
+        if kind == "cone":
+            depth = cone_depth(scale, q - centre)
+        else:
+            local = q - (centre[0], centre[1], 0.0)
+            depth = surface_height(field.data, field.hx, field.hy, 0.0, 0.4, local[:, 0], local[:, 1]) - local[:, 2]
+            depth[np.any(np.abs(local[:, :2]) > 0.5 * TANK, axis=1)] = -1.0
+        most = max(most, int(np.count_nonzero(depth > 0.3 * D)))
+    return most, report(sim)
+
+
+def test_thrown_block_stays_out_of_cone_and_terrain(test, device):
+    # the shapes upstream's contacts know besides the ones of the tank test: 3.3 spacings per substep at one
+    # substep per frame, then the whole tank's fall at eight
+    for kind in ("cone", "heightfield"):
+        with test.subTest(shape=kind):
+            for substeps in (1, 8):
+                inside_it, (stats, _) = thrown_onto(device, kind, substeps)
+                test.assertEqual(inside_it, 0, substeps)
+                test.assertEqual(stats["nonfinite_recovered"], 0)
+                if substeps == 1:
+                    test.assertGreater(stats["shape_entries_stopped"], 0)
+            # without it, the block passes into the shape
+            inside_before, _ = thrown_onto(device, kind, 1, fluid_continuous_collision=False)
+            test.assertGreater(inside_before, 10)
 
 
 def spun_vase(device, spin, substeps, **kwargs):

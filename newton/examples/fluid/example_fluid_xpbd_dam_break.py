@@ -32,7 +32,13 @@ WALL_HEIGHT = 1.6  # [m]
 WALL_THICKNESS = 0.05  # [m]
 
 
-def add_dam_break(builder: newton.ModelBuilder, particle_count: int, obstacles: bool, jitter: float = 0.1) -> dict:
+def add_dam_break(
+    builder: newton.ModelBuilder,
+    particle_count: int,
+    obstacles: bool,
+    jitter: float = 0.1,
+    terrain_bump: float = 0.0,
+) -> dict:
     """Add the dam-break tank, its water column and optionally two obstacles to ``builder``.
 
     The column of ``BASE_DIMS`` particles at ``BASE_SPACING`` is rescaled to about
@@ -43,6 +49,8 @@ def add_dam_break(builder: newton.ModelBuilder, particle_count: int, obstacles: 
         particle_count: Approximate number of fluid particles.
         obstacles: Add two static boxes in the path of the surge.
         jitter: Random offset of the initial lattice, as a fraction of the spacing.
+        terrain_bump: If above 0, the floor is a heightfield (:class:`newton.Heightfield`) instead of the
+            ground plane: cells of two spacings, heights random between 0 and this fraction of the spacing.
 
     Returns:
         dict: ``spacing`` [m], ``dims`` (particles per axis), ``half_width`` (tank, y) [m] and
@@ -68,7 +76,21 @@ def add_dam_break(builder: newton.ModelBuilder, particle_count: int, obstacles: 
         flags=int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID),
     )
     # water slips along the tank: no Coulomb friction between particles and these shapes
-    builder.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(mu=0.0))
+    if terrain_bump > 0.0:
+        cells = (round(2.0 * TANK_HALF_LENGTH / (2.0 * spacing)), round(2.0 * half_width / (2.0 * spacing)))
+        heights = np.random.default_rng(1).uniform(0.0, 1.0, (cells[1] + 1, cells[0] + 1))
+        terrain = newton.Heightfield(
+            heights,
+            cells[1] + 1,
+            cells[0] + 1,
+            hx=TANK_HALF_LENGTH,
+            hy=half_width,
+            min_z=0.0,
+            max_z=terrain_bump * spacing,
+        )
+        builder.add_shape_heightfield(heightfield=terrain, cfg=newton.ModelBuilder.ShapeConfig(mu=0.0))
+    else:
+        builder.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(mu=0.0))
     add_tank(builder, TANK_HALF_LENGTH, half_width, WALL_HEIGHT, WALL_THICKNESS)
     boxes = []
     if obstacles:

@@ -18,10 +18,11 @@ what still points into the wall. A path pushed off one shape is followed again, 
 thrown into a corner stops at every wall; one still entering a shape after ``GUARD_ROUNDS`` rounds
 stops just before its first entry.
 
-Boxes, spheres, capsules, cylinders, ellipsoids and planes are intersected exactly; triangle
-meshes (and convex hulls) by a ray cast against their BVH. Cones, heightfields and barrel-sided
-cylinders are left to upstream's contacts. Shapes of dynamic bodies are left to them too: they take
-the fluid's reaction, which a hard stop would not give them.
+Boxes, spheres, capsules, cylinders, cones, ellipsoids and planes are intersected exactly; triangle
+meshes (and convex hulls) by a ray cast against their BVH; heightfields triangle by triangle along the
+cells the path crosses (:mod:`.heightfields`). Barrel-sided cylinders are left to upstream's contacts.
+Shapes of dynamic bodies are left to them too: they take the fluid's reaction, which a hard stop would
+not give them.
 """
 
 from __future__ import annotations
@@ -31,6 +32,8 @@ import warp as wp
 
 from ....geometry import GeoType, ParticleFlags, ShapeFlags
 from ....sim.enums import BodyFlags
+from ....utils.heightfield import HeightfieldData
+from .heightfields import heightfield_distance, heightfield_entry
 
 # a segment parameter past the end of the path: no entry
 NO_ENTRY = wp.constant(2.0)
@@ -47,9 +50,11 @@ GUARDED_TYPES = (
     GeoType.BOX,
     GeoType.CAPSULE,
     GeoType.CYLINDER,
+    GeoType.CONE,
     GeoType.ELLIPSOID,
     GeoType.MESH,
     GeoType.CONVEX_MESH,
+    GeoType.HFIELD,
 )
 
 
@@ -66,6 +71,9 @@ class GuardedShapes:
     # 1 for a watertight mesh: inside it is inside (an open one has two sides); measured for the placement's
     # guard only (one zero otherwise: the paths' intersection needs no inside)
     shape_solid: wp.array[wp.int32]
+    shape_heightfield: wp.array[wp.int32]  # a heightfield shape's row in heightfield (-1: none)
+    heightfield: wp.array[HeightfieldData]
+    heightfield_elevation: wp.array[wp.float32]
     shape_transform: wp.array[wp.transform]
     shape_body: wp.array[wp.int32]
     body_q: wp.array[wp.transform]  # body poses at the end of the substep
@@ -163,6 +171,79 @@ def _cylinder_entry(a: wp.vec3, d: wp.vec3, radius: float, half_height: float):
 
 
 @wp.func
+def _cone_interval(a: wp.vec3, d: wp.vec3, radius: float, half_height: float):
+    """Parameters where ``a + t d`` enters and leaves the infinite cone of the z axis with its apex at
+    ``half_height`` opening downwards to ``radius`` at ``-half_height`` (its nappe below the apex), and the
+    entry normal.
+
+    Inside: ``rho <= k w`` with ``rho`` the distance from the axis, ``w = half_height - z`` and
+    ``k = radius / (2 half_height)``, that is ``q(t) = k^2 w^2 - rho^2 >= 0`` with ``w >= 0``; ``q`` is
+    quadratic in ``t`` (``A t^2 + 2 B t + C``) and its two nappes are told apart by the sign of ``w``.
+    """
+    k = radius / (2.0 * half_height)
+    aw = half_height - a[2]
+    dw = -d[2]
+    qa = k * k * dw * dw - d[0] * d[0] - d[1] * d[1]
+    qb = k * k * aw * dw - a[0] * d[0] - a[1] * d[1]
+    qc = k * k * aw * aw - a[0] * a[0] - a[1] * a[1]
+    lo = float(-1.0e30)
+    hi = float(1.0e30)
+    if wp.abs(qa) < 1.0e-30:
+        # along a generator: q is linear
+        if wp.abs(qb) < 1.0e-30:
+            if qc < 0.0:
+                lo = 1.0e30
+        elif qb > 0.0:
+            lo = -qc / (2.0 * qb)
+        else:
+            hi = -qc / (2.0 * qb)
+    else:
+        disc = qb * qb - qa * qc
+        if disc < 0.0:
+            if qa < 0.0:
+                lo = 1.0e30
+        else:
+            root = wp.sqrt(disc)
+            r1 = wp.min((-qb - root) / qa, (-qb + root) / qa)
+            r2 = wp.max((-qb - root) / qa, (-qb + root) / qa)
+            if qa < 0.0:
+                lo = r1
+                hi = r2
+            elif aw + r1 * dw >= aw + r2 * dw:
+                # the line crosses both nappes: the lower one is where w is positive at its root
+                hi = r1
+            else:
+                lo = r2
+    # w >= 0: below the apex
+    if wp.abs(dw) < 1.0e-30:
+        if aw < 0.0:
+            lo = 1.0e30
+    elif dw > 0.0:
+        lo = wp.max(lo, -aw / dw)
+    else:
+        hi = wp.min(hi, -aw / dw)
+    n = wp.vec3(0.0, 0.0, 1.0)
+    if wp.abs(lo) < 1.0e29:
+        p = a + lo * d
+        slope = wp.vec3(p[0], p[1], k * wp.sqrt(p[0] * p[0] + p[1] * p[1]))
+        if wp.length_sq(slope) > 0.0:
+            n = wp.normalize(slope)
+    return lo, hi, n
+
+
+@wp.func
+def _cone_entry(a: wp.vec3, d: wp.vec3, radius: float, half_height: float):
+    t_in, t_out, n = _cone_interval(a, d, radius, half_height)
+    s_in, s_out, s_n = _box_interval(
+        a, d, wp.vec3(-1.0e30, -1.0e30, -half_height), wp.vec3(1.0e30, 1.0e30, half_height)
+    )
+    if s_in > t_in:
+        t_in = s_in
+        n = s_n
+    return _convex_entry(t_in, wp.min(t_out, s_out), n)
+
+
+@wp.func
 def _plane_entry(a: wp.vec3, d: wp.vec3, scale: wp.vec3):
     """An infinite plane is the half-space z < 0; a finite one (``scale`` its width and length) a sheet met from either side."""
     b = a + d
@@ -193,7 +274,9 @@ def _mesh_entry(mesh: wp.uint64, a: wp.vec3, d: wp.vec3, scale: wp.vec3):
 @wp.func
 def segment_entry(shape_type: int, scale: wp.vec3, source: wp.uint64, a: wp.vec3, d: wp.vec3):
     """Where the path ``a + t d``, ``t`` in [0, 1], first enters the shape from outside (``w``; ``NO_ENTRY``: it does
-    not), and the shape's outward unit normal there (``xyz``), in the shape's frame."""
+    not), and the shape's outward unit normal there (``xyz``), in the shape's frame.
+
+    Heightfields need their grid: :func:`shape_entry`."""
     if shape_type == GeoType.BOX:
         t_in, t_out, n = _box_interval(a, d, -scale, scale)
         return _convex_entry(t_in, t_out, n)
@@ -208,6 +291,8 @@ def segment_entry(shape_type: int, scale: wp.vec3, source: wp.uint64, a: wp.vec3
         return _entry(t_in, wp.normalize(wp.cw_div(n, scale)))
     if shape_type == GeoType.CYLINDER:
         return _cylinder_entry(a, d, scale[0], scale[1])
+    if shape_type == GeoType.CONE:
+        return _cone_entry(a, d, scale[0], scale[1])
     if shape_type == GeoType.CAPSULE:
         # a tube and two balls: from outside all three, the union is entered where the first of them is
         radius = scale[0]
@@ -227,6 +312,15 @@ def segment_entry(shape_type: int, scale: wp.vec3, source: wp.uint64, a: wp.vec3
     if shape_type == GeoType.MESH or shape_type == GeoType.CONVEX_MESH:
         return _mesh_entry(source, a, d, scale)
     return _no_entry()
+
+
+@wp.func
+def shape_entry(shapes: GuardedShapes, s: int, a: wp.vec3, d: wp.vec3):
+    """:func:`segment_entry` of guarded shape ``s``, heightfields included."""
+    shape_type = shapes.shape_type[s]
+    if shape_type == GeoType.HFIELD:
+        return heightfield_entry(shapes.heightfield[shapes.shape_heightfield[s]], shapes.heightfield_elevation, a, d)
+    return segment_entry(shape_type, shapes.shape_scale[s], shapes.shape_source[s], a, d)
 
 
 @wp.func
@@ -319,7 +413,7 @@ def first_shape_entry(shapes: GuardedShapes, lo: int, hi: int, x0: wp.vec3, x1: 
             start, end = shape_poses(shapes, s)
             a = wp.transform_point(wp.transform_inverse(start), x0)
             b = wp.transform_point(wp.transform_inverse(end), x1)
-        e = segment_entry(shapes.shape_type[s], shapes.shape_scale[s], shapes.shape_source[s], a, b - a)
+        e = shape_entry(shapes, s, a, b - a)
         if e[3] < best[3]:
             best = e
             best_s = s
@@ -406,11 +500,73 @@ def cylinder_distance(scale: wp.vec3, p: wp.vec3):
 
 
 @wp.func
+def cone_distance(scale: wp.vec3, p: wp.vec3):
+    """Signed distance [m] (xyz: outward normal, w: distance) of local ``p`` to a cone along z (base radius
+    ``scale[0]`` at ``-scale[1]``, apex at ``scale[1]``).
+
+    In the half-plane of ``p`` and the axis the cone is the triangle (0, -H), (r, -H), (0, H) of
+    (distance from the axis, z); its surface is the base edge and the slanted edge.
+    """
+    r = scale[0]
+    hh = scale[1]
+    rho = wp.sqrt(p[0] * p[0] + p[1] * p[1])
+    side = wp.where(rho > 0.0, wp.vec3(p[0], p[1], 0.0) / wp.max(rho, 1.0e-12), wp.vec3(1.0, 0.0, 0.0))
+    q = wp.vec2(rho, p[2])
+    base = wp.vec2(wp.clamp(rho, 0.0, r), -hh)
+    rim = wp.vec2(r, -hh)
+    edge = wp.vec2(-r, 2.0 * hh)
+    slant = rim + wp.clamp(wp.dot(q - rim, edge) / wp.dot(edge, edge), 0.0, 1.0) * edge
+    to_base = wp.length(q - base)
+    to_slant = wp.length(q - slant)
+    if p[2] >= -hh and rho * 2.0 * hh <= r * (hh - p[2]):
+        # inside: the nearer face
+        if to_base <= to_slant:
+            return wp.vec4(0.0, 0.0, -1.0, -to_base)
+        out = wp.normalize(wp.vec2(2.0 * hh, r))
+        n = out[0] * side + wp.vec3(0.0, 0.0, out[1])
+        return wp.vec4(n[0], n[1], n[2], -to_slant)
+    nearest = wp.where(to_base <= to_slant, base, slant)
+    dist = wp.min(to_base, to_slant)
+    out = wp.vec2(0.0, 1.0)
+    if dist > 0.0:
+        out = (q - nearest) / dist
+    n = out[0] * side + wp.vec3(0.0, 0.0, out[1])
+    return wp.vec4(n[0], n[1], n[2], dist)
+
+
+@wp.func
+def ellipsoid_distance(scale: wp.vec3, p: wp.vec3):
+    """Approximate signed distance [m] (xyz: outward normal, w: distance) of local ``p`` to an ellipsoid of
+    semi-axes ``scale``: ``k0 (k0 - 1) / k1`` with ``k0 = |p / r|``, ``k1 = |p / r^2|`` (Quilez, "Ellipsoid SDF",
+    2008), exact on a sphere and with the true sign everywhere."""
+    pr = wp.cw_div(p, scale)
+    prr = wp.cw_div(pr, scale)
+    k0 = wp.length(pr)
+    k1 = wp.length(prr)
+    if k1 <= 0.0:
+        # the centre: the shortest semi-axis
+        smallest = wp.min(wp.min(scale[0], scale[1]), scale[2])
+        n = wp.vec3(0.0, 0.0, 1.0)
+        if smallest == scale[0]:
+            n = wp.vec3(1.0, 0.0, 0.0)
+        elif smallest == scale[1]:
+            n = wp.vec3(0.0, 1.0, 0.0)
+        return wp.vec4(n[0], n[1], n[2], -smallest)
+    n = prr / k1
+    return wp.vec4(n[0], n[1], n[2], k0 * (k0 - 1.0) / k1)
+
+
+@wp.func
 def surface_distance(shape_type: int, scale: wp.vec3, source: wp.uint64, solid: int, p: wp.vec3, reach: float):
-    """:func:`shape_distance` for straight cylinders and triangle meshes too (``source`` the mesh, looked for
-    within ``reach`` [m]). A watertight mesh (``solid``) is signed by its angle-weighted normals; an open one
-    has no inside, and its normal points to ``p``'s side. Barrel cylinders, cones and heightfields, and
-    meshes farther than ``reach``, read as far away (1e10 m)."""
+    """:func:`shape_distance` for straight cylinders, cones, ellipsoids and triangle meshes too (``source`` the
+    mesh, looked for within ``reach`` [m]). A watertight mesh (``solid``) is signed by its angle-weighted
+    normals; an open one has no inside, and its normal points to ``p``'s side. Barrel cylinders and meshes
+    farther than ``reach`` read as far away (1e10 m); heightfields need their grid
+    (:func:`~.heightfields.heightfield_distance`)."""
+    if shape_type == GeoType.CONE:
+        return cone_distance(scale, p)
+    if shape_type == GeoType.ELLIPSOID:
+        return ellipsoid_distance(scale, p)
     if shape_type == GeoType.CYLINDER:
         if scale[2] != 0.0:
             return wp.vec4(0.0, 0.0, 1.0, 1.0e10)
@@ -432,6 +588,16 @@ def surface_distance(shape_type: int, scale: wp.vec3, source: wp.uint64, solid: 
             n = wp.normalize(wp.cw_div(wp.mesh_eval_face_normal(source, q.face), scale))
         return wp.vec4(n[0], n[1], n[2], sign * d)
     return shape_distance(shape_type, scale, p)
+
+
+@wp.func
+def guarded_surface_distance(shapes: GuardedShapes, s: int, p: wp.vec3, reach: float):
+    """:func:`surface_distance` of guarded shape ``s`` at local ``p``, heightfields included."""
+    if shapes.shape_type[s] == GeoType.HFIELD:
+        return heightfield_distance(shapes.heightfield[shapes.shape_heightfield[s]], shapes.heightfield_elevation, p)
+    return surface_distance(
+        shapes.shape_type[s], shapes.shape_scale[s], shapes.shape_source[s], shapes.shape_solid[s], p, reach
+    )
 
 
 @wp.kernel
@@ -543,8 +709,13 @@ def local_bounds(shape_type: int, scale: np.ndarray, source) -> np.ndarray:
         half = np.full(3, scale[0])
     elif shape_type == GeoType.CAPSULE:
         half = np.array([scale[0], scale[0], scale[1] + scale[0]])
-    elif shape_type == GeoType.CYLINDER:
+    elif shape_type in (GeoType.CYLINDER, GeoType.CONE):
         half = np.array([scale[0], scale[0], scale[1]])
+    elif shape_type == GeoType.HFIELD:
+        # solid below its surface to any depth (a kilometre here)
+        top = max(source.min_z * scale[2], source.max_z * scale[2])
+        half_x, half_y = abs(source.hx * scale[0]), abs(source.hy * scale[1])
+        return np.array([[-half_x, -half_y, -1.0e3], [half_x, half_y, top]])
     elif shape_type == GeoType.PLANE:
         if scale[0] > 0.0 and scale[1] > 0.0:
             half = np.array([0.5 * scale[0], 0.5 * scale[1], 0.0])
@@ -563,6 +734,19 @@ def watertight_meshes(model) -> np.ndarray:
     for s in np.flatnonzero((kinds == int(GeoType.MESH)) | (kinds == int(GeoType.CONVEX_MESH))):
         solid[s] = int(bool(getattr(model.shape_source[s], "is_watertight", False)))
     return solid
+
+
+def model_heightfields(model):
+    """``model``'s heightfield rows per shape, their grids and elevations (one empty grid without any)."""
+    d = model.device
+    index = getattr(model, "shape_heightfield_index", None)
+    grids = getattr(model, "heightfield_data", None)
+    elevation = getattr(model, "heightfield_elevations", None)
+    if index is None or grids is None or elevation is None:
+        index = wp.full(max(model.shape_count, 1), -1, dtype=wp.int32, device=d)
+        grids = wp.zeros(1, dtype=HeightfieldData, device=d)
+        elevation = wp.zeros(1, dtype=wp.float32, device=d)
+    return index, grids, elevation
 
 
 class ContinuousCollision:
@@ -593,6 +777,7 @@ class ContinuousCollision:
         s.shape_scale = model.shape_scale
         s.shape_source = model.shape_source_ptr
         s.shape_solid = wp.array(solid, dtype=wp.int32, device=d)
+        s.shape_heightfield, s.heightfield, s.heightfield_elevation = model_heightfields(model)
         s.shape_transform = model.shape_transform
         s.shape_body = model.shape_body
         #: whether a guarded shape is on a (kinematic) body

@@ -43,9 +43,18 @@ device and reported, with a warning, by the next ``fluid_diagnostics`` call.
 
 import warp as wp
 
-from ....geometry import ParticleFlags
-from .continuous_collision import GuardedShapes, first_shape_entry, shape_poses, surface_distance, world_row
+from ....geometry import GeoType, ParticleFlags
+from ....utils.heightfield import HeightfieldData
+from .continuous_collision import (
+    GuardedShapes,
+    first_shape_entry,
+    guarded_surface_distance,
+    shape_poses,
+    surface_distance,
+    world_row,
+)
 from .density_constraint import CorrectionSlot, density_correction_sum, relaxed_correction
+from .heightfields import heightfield_distance
 from .sph import FluidParams, FluidSlots
 from .walls import WALL_CONTACTS_PER_SLOT
 
@@ -162,8 +171,9 @@ def list_shape_walls(
     For the slots of the worlds ``listed`` selects (the placed ones, then the relaxing ones) while
     ``any_listed[0]`` is set.
     What a step lists from upstream's contacts (:func:`~.walls.list_wall_contact`), found here from
-    the shapes themselves (:func:`~.continuous_collision.surface_distance`: planes, spheres, capsules,
-    boxes, straight cylinders and meshes), since the contacts of the step were found at the packed positions.
+    the shapes themselves (:func:`~.continuous_collision.guarded_surface_distance`: every shape that
+    collides with particles but barrel-sided cylinders), since the contacts of the step were found at the
+    packed positions.
     """
     i = wp.tid()
     pi = slots.particle[i]
@@ -193,9 +203,7 @@ def list_shape_walls(
             continue
         start, pose = shape_poses(shapes, s)
         local = wp.transform_point(wp.transform_inverse(pose), x)
-        hit = surface_distance(
-            shapes.shape_type[s], shapes.shape_scale[s], shapes.shape_source[s], shapes.shape_solid[s], local, h
-        )
+        hit = guarded_surface_distance(shapes, s, local, h)
         if hit[3] >= h or count >= WALL_CONTACTS_PER_SLOT:
             continue
         normal = wp.transform_vector(pose, wp.vec3(hit[0], hit[1], hit[2]))
@@ -375,6 +383,9 @@ def refresh_relaxed_contacts(
     shape_scale: wp.array[wp.vec3],
     shape_source: wp.array[wp.uint64],
     shape_solid: wp.array[wp.int32],
+    shape_heightfield: wp.array[wp.int32],
+    heightfield: wp.array[HeightfieldData],
+    heightfield_elevation: wp.array[wp.float32],
     shape_transform: wp.array[wp.transform],
     shape_body: wp.array[int],
     body_q: wp.array[wp.transform],
@@ -387,9 +398,9 @@ def refresh_relaxed_contacts(
     They were found at the packed positions: a particle moved out of a box through another face than
     the one its contact names would be pushed back through the box. Each such contact becomes the
     plane at the shape's surface point nearest to where the particle is now
-    (:func:`~.continuous_collision.surface_distance`); for a shape it does not measure (a cone, a
-    heightfield) the plane is put a metre behind the particle, out of reach for the step (the next
-    collision finds it again).
+    (:func:`~.continuous_collision.surface_distance`, :func:`~.heightfields.heightfield_distance`); for a
+    shape it does not measure (a barrel-sided cylinder) the plane is put a metre behind the particle, out
+    of reach for the step (the next collision finds it again).
     """
     k = wp.tid()
     if k >= wp.min(contact_count[0], contact_max):
@@ -407,7 +418,11 @@ def refresh_relaxed_contacts(
     pose = body * shape_transform[s]
     x = particle_q[pi]
     local = wp.transform_point(wp.transform_inverse(pose), x)
-    hit = surface_distance(shape_type[s], shape_scale[s], shape_source[s], shape_solid[s], local, 1.0e6)
+    hit = wp.vec4()
+    if shape_type[s] == GeoType.HFIELD:
+        hit = heightfield_distance(heightfield[shape_heightfield[s]], heightfield_elevation, local)
+    else:
+        hit = surface_distance(shape_type[s], shape_scale[s], shape_source[s], shape_solid[s], local, 1.0e6)
     normal = contact_normal[k]
     surface = x - normal
     if hit[3] < 1.0e9:

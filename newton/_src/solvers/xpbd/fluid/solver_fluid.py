@@ -35,7 +35,7 @@ from .config import (
     free_memory,
     real_in_range,
 )
-from .continuous_collision import GUARD_ROUNDS, ContinuousCollision, GuardedShapes, still_shapes
+from .continuous_collision import GUARD_ROUNDS, ContinuousCollision, GuardedShapes, model_heightfields, still_shapes
 from .density_constraint import (
     APPLY_ADVANCE,
     APPLY_AS_XPBD,
@@ -265,6 +265,7 @@ class FluidSolver:
             if self.placement_guard is not None
             else wp.zeros(max(model.shape_count, 1), dtype=wp.int32, device=self.device)
         )
+        self.shape_heightfields = model_heightfields(model)
         # the second stream (see FluidTuning.concurrent_passes), and whether work on it has not been joined yet
         concurrent = self.device.is_cuda and self.tuning.concurrent_passes
         self.side_stream = wp.Stream(self.device) if concurrent else None
@@ -800,6 +801,7 @@ class FluidSolver:
                     m.shape_scale,
                     m.shape_source_ptr,
                     self.shape_solid,
+                    *self.shape_heightfields,
                     m.shape_transform,
                     m.shape_body,
                     state.body_q if state.body_q is not None else self._no_bodies,
