@@ -80,8 +80,10 @@ for what in "$@"; do
         $ps --block 50 --layers 40 --height 8 --seconds 0.5 --fraction $f --graph \
           --json "$out/packed_start_100k_${f}_graph_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
       done
-      $ps --block 50 --layers 40 --height 8 --seconds 0.5 --fraction 0.5 \
-        --json "$out/packed_start_100k_0.5_eager_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+      for f in 0.5 0.7; do
+        $ps --block 50 --layers 40 --height 8 --seconds 0.5 --fraction $f \
+          --json "$out/packed_start_100k_${f}_eager_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+      done
       $ps --fraction 0.7 --graph --json "$out/packed_start_0.7_graph_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
       for mode in "" "--graph"; do
         tag=${mode:-eager}; tag=${tag#--}

@@ -310,16 +310,39 @@ def test_deep_column_relaxes_in_a_conditional_loop(test, device):
     eager.step(1)
     np.testing.assert_allclose(sim.q(), eager.q(), atol=1.0e-4)
     test.assertEqual(report(sim)[0]["overpacked_placed"], 0)
-    # with the rounds a CUDA step without a graph launches, the column is left packed and springs apart
-    short = Sim(deep_packed_column(device, 0.5), substeps=8, contacts=True)
+    # with the rounds a CUDA step launches where the driver has no conditional nodes, the column is left packed
+    # and springs apart
     kept, solver_fluid.RELAXATION_ROUNDS = solver_fluid.RELAXATION_ROUNDS, EAGER_RELAXATION_ROUNDS
     try:
+        short = Sim(deep_packed_column(device, 0.5), substeps=8, contacts=True)
         short.step(1)
     finally:
         solver_fluid.RELAXATION_ROUNDS = kept
     test.assertGreater(np.linalg.norm(short.qd(), axis=1).max(), 5.0)
     _, messages = report(short)
     test.assertTrue(any("were still packed" in m for m in messages), messages)
+
+
+def test_deep_column_relaxes_in_a_step_outside_a_graph(test, device):
+    # a step that is not captured runs the same conditional loop: on the CPU directly, on CUDA as a graph the
+    # solver captured at construction (its launch reads no flag on the host), on copies of the state's arrays
+    sim = Sim(deep_packed_column(device, 0.5), substeps=8, contacts=True)
+    if wp.get_device(device).is_cuda and wp.is_conditional_graph_supported():
+        test.assertIsNotNone(sim.solver._fluid.eager_relaxation)
+    sim.step(1)
+    rounds = RELAXATION_ROUNDS - int(sim.solver._fluid.placement_rounds_left.numpy()[0])
+    test.assertGreater(rounds, 2 * EAGER_RELAXATION_ROUNDS)
+    test.assertLess(np.linalg.norm(sim.qd(), axis=1).max(), 1.0)
+    stats, messages = report(sim)
+    test.assertEqual(stats["overpacked_placed"], 640)
+    test.assertTrue(any("within 1 % of rest density" in m for m in messages), messages)
+    # a reset to the packed start asks for the check again and reuses the captured graph
+    captured = sim.solver._fluid.eager_relaxation
+    sim.solver.reset(sim.state_0)
+    test.assertTrue(sim.solver._fluid.eager_relaxation is captured)
+    sim.step(1)
+    test.assertLess(np.linalg.norm(sim.qd(), axis=1).max(), 1.0)
+    test.assertEqual(report(sim)[0]["overpacked_placed"], 640)
 
 
 def test_open_mesh_has_no_inside(test, device):

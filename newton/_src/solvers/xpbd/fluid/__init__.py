@@ -131,8 +131,10 @@ def reset(self, state, world_mask=None, flags=None, *, fluid_source=None) -> Non
     above rest density, or with a centre inside a shape, is first moved apart, positions only
     (see :doc:`formulation`, "Over-packed placements"). In a CUDA graph that check runs only when the
     mask selected a world (6.8 ms at 100k particles on an H200 where nothing is packed) and relaxes for
-    as many rounds as the packing needs; a step without a graph launches the check and 64 rounds
-    (about 140 ms at 100k).
+    as many rounds as the packing needs. A CUDA step without a graph does the same by launching a graph
+    of the check and the rounds that the solver captured once: at construction if the initial fluid was
+    over-packed, else at the first reset outside a capture that asks for a check (that reset allocates
+    a copy of the positions and of the body poses for it; later ones reuse them).
 
     Args:
         state: The state to reset (modified in place), the one the next :meth:`step` reads.

@@ -159,8 +159,8 @@ class FluidReports:
                 f"to within {100.0 * PLACEMENT_TOLERANCE:.0f} % of rest density"
                 if unfinished == 0
                 else f"but {unfinished} world(s) were still packed past {100.0 * PLACEMENT_TOLERANCE:.0f} % after "
-                f"its rounds ({RELAXATION_ROUNDS} in a CUDA graph or on the CPU, {EAGER_RELAXATION_ROUNDS} in a CUDA "
-                "step without a graph; the rest springs apart with velocity)"
+                f"its rounds ({RELAXATION_ROUNDS}; {EAGER_RELAXATION_ROUNDS} in a CUDA step without a graph where the "
+                "driver has no conditional graph nodes; the rest springs apart with velocity)"
             )
             warnings.warn(
                 f"{count} fluid particles were placed more than {100.0 * PLACEMENT_COMPRESSION:.0f} % above rest "

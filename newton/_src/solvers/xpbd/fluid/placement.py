@@ -34,7 +34,10 @@ correction about one neighbour further): 40 layers take about 270. In a CUDA gra
 check runs only if a world was placed (a conditional node on a device flag, so a graph captured with
 a reset runs nothing more when its mask selects no world) and the rounds are a conditional loop
 that stops at the last relaxing world, up to :data:`RELAXATION_ROUNDS`. A CUDA step without a graph
-cannot read those flags without synchronising, so it launches :data:`EAGER_RELAXATION_ROUNDS` rounds,
+cannot read those flags without synchronising, so it launches a graph of the same nodes that the
+solver captured beforehand (at construction, or at a reset outside a capture), on copies of the
+positions and body poses; where the CUDA driver has no conditional nodes it launches
+:data:`EAGER_RELAXATION_ROUNDS` rounds,
 which leave a 40-layer block packed; what is left springs apart with velocity, and the report says
 so (docs/archive/validation_notebook.md, "Over-packed starts"). The conditional bodies' neighbour
 builds sort with :mod:`.prefix_sum` (a body may not allocate). What was found is counted on the
@@ -72,7 +75,8 @@ PLACEMENT_TOLERANCE = wp.constant(0.01)
 #: fluid within ``PLACEMENT_TOLERANCE`` (a world stops at its own such round)
 RELAXATION_ROUNDS = 512
 
-#: rounds a CUDA step without a graph launches, every one of them (it cannot read the flag that would stop
+#: rounds a CUDA step without a graph launches where the driver has no conditional graph nodes, every one of
+#: them (it cannot read the flag that would stop
 #: them without synchronising; those after the last world stopped return at once, but for their neighbour
 #: builds)
 EAGER_RELAXATION_ROUNDS = 64

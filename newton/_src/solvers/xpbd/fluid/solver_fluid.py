@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import warp as wp
@@ -279,6 +280,11 @@ class FluidSolver:
         self.initial_overpacked = config.fluid_relax_overpacked and self._find_overpacked(model.particle_q)
         #: whether the next step checks the placed worlds (and relaxes the over-packed ones)
         self.placement_pending = self.initial_overpacked
+        # the check and the rounds captured for CUDA steps outside a graph, with the copies they work on
+        # (:meth:`_capture_eager_relaxation`)
+        self.eager_relaxation = None
+        if self.placement_pending:
+            self._capture_eager_relaxation()
 
     @property
     def rest_density(self) -> float:
@@ -751,9 +757,11 @@ class FluidSolver:
         Nothing (no launch) unless the construction found the initial fluid over-packed or a reset
         restored positions since the last step. In a CUDA graph and on the CPU the check runs only if
         a world was placed, and the rounds are a conditional loop that stops at the last relaxing
-        world; a CUDA step without a graph launches every round of :data:`EAGER_RELAXATION_ROUNDS`
-        (no synchronisation): those after the last world stopped return at once, but for their
-        neighbour builds.
+        world. A CUDA step without a graph launches the same nodes, captured once beforehand
+        (:meth:`_capture_eager_relaxation`), on copies of the positions and body poses; where the
+        driver has no conditional nodes it launches every round of :data:`EAGER_RELAXATION_ROUNDS` (no
+        synchronisation): those after the last world stopped return at once, but for their neighbour
+        builds.
         """
         if not self.placement_pending:
             return
@@ -765,6 +773,15 @@ class FluidSolver:
             wp.capture_if(self.any_placed, self._check_placement, state=state, shapes=shapes, rounds=RELAXATION_ROUNDS)
             wp.capture_while(self.any_relaxing, self._relaxation_round, state=state, shapes=shapes)
             wp.capture_if(self.any_placed, self._finish_placement, state=state)
+        elif self.eager_relaxation is not None:
+            copies, graph = self.eager_relaxation
+            wp.copy(copies.particle_q, state.particle_q)
+            if copies.body_q is not None and state.body_q is not None:
+                wp.copy(copies.body_q, state.body_q)
+                wp.copy(copies.body_qd, state.body_qd)
+            wp.capture_launch(graph)
+            wp.copy(state.particle_q, copies.particle_q)
+            self._finish_placement(state)
         else:
             self._check_placement(state, shapes, EAGER_RELAXATION_ROUNDS)
             for _ in range(EAGER_RELAXATION_ROUNDS):
@@ -815,6 +832,41 @@ class FluidSolver:
             outputs=[self.placed, self.any_placed, self.relaxing, self.any_relaxing],
             device=self.device,
         )
+
+    def _capture_eager_relaxation(self) -> None:
+        """Capture the check and the rounds of the relaxation once, with their conditional nodes, for CUDA steps
+        outside a graph.
+
+        Such a step cannot read the flags that end the rounds without synchronising; launching this graph, it
+        runs them as a graph step does, up to :data:`RELAXATION_ROUNDS`, stopping at the last relaxing world.
+        A graph binds its arrays, so it works on copies of the positions and body poses that the step makes
+        before the launch and copies back after it. Captured at construction or at a reset that asks for a
+        check (not inside ``step``), once; nothing on the CPU, inside another capture (that step captures the
+        conditional nodes itself) or where the CUDA driver has no conditional nodes (the step then launches
+        :data:`EAGER_RELAXATION_ROUNDS` rounds).
+        """
+        d = self.device
+        if self.eager_relaxation is not None or not d.is_cuda or d.is_capturing:
+            return
+        if not wp.is_conditional_graph_supported():
+            return
+        m = self.model
+        bodies = m.body_count > 0 and m.body_q is not None
+        copies = SimpleNamespace(
+            particle_q=wp.empty_like(m.particle_q),
+            body_q=wp.empty_like(m.body_q) if bodies else None,
+            body_qd=wp.empty_like(m.body_qd) if bodies else None,
+        )
+        # (the modules of the check and the rounds, loaded before the capture rather than during it)
+        for name in ("placement", "neighbors", "prefix_sum", "density_constraint", "continuous_collision", "walls"):
+            wp.load_module(f"{__package__}.{name}", device=d)
+        self._join()
+        with wp.ScopedCapture(device=d, force_module_load=False) as capture:
+            shapes = self._hold_placement_guard(copies.body_q, copies.body_qd)
+            wp.capture_if(self.any_placed, self._check_placement, state=copies, shapes=shapes, rounds=RELAXATION_ROUNDS)
+            wp.capture_while(self.any_relaxing, self._relaxation_round, state=copies, shapes=shapes)
+        self.slot_content = SlotContent.STALE
+        self.eager_relaxation = (copies, capture.graph)
 
     def _relaxation_round(self, state, shapes: GuardedShapes, first: bool = False) -> None:
         """One round of the relaxation: a neighbour build (but in the first), the check that stops relaxed worlds, passes."""
@@ -947,6 +999,7 @@ class FluidSolver:
                 device=self.device,
             )
             self.placement_pending = True
+            self._capture_eager_relaxation()
         if self.diffuse is not None:
             b = self.diffuse
             wp.launch(
