@@ -159,15 +159,21 @@ def _convex_entry(t_in: float, t_out: float, n: wp.vec3):
 
 
 @wp.func
-def _cylinder_entry(a: wp.vec3, d: wp.vec3, radius: float, half_height: float):
-    t_in, t_out, n = _tube_interval(a, d, radius)
+def _capped_entry(a: wp.vec3, d: wp.vec3, t_in: float, t_out: float, n: wp.vec3, half_height: float):
+    """The entry of ``a + t d`` into a solid of the z axis it overlaps for ``t`` in [t_in, t_out] (entry normal
+    ``n``), cut by the slab ``|z| <= half_height``."""
     s_in, s_out, s_n = _box_interval(
         a, d, wp.vec3(-1.0e30, -1.0e30, -half_height), wp.vec3(1.0e30, 1.0e30, half_height)
     )
     if s_in > t_in:
-        t_in = s_in
-        n = s_n
+        return _convex_entry(s_in, wp.min(t_out, s_out), s_n)
     return _convex_entry(t_in, wp.min(t_out, s_out), n)
+
+
+@wp.func
+def _cylinder_entry(a: wp.vec3, d: wp.vec3, radius: float, half_height: float):
+    t_in, t_out, n = _tube_interval(a, d, radius)
+    return _capped_entry(a, d, t_in, t_out, n, half_height)
 
 
 @wp.func
@@ -234,13 +240,7 @@ def _cone_interval(a: wp.vec3, d: wp.vec3, radius: float, half_height: float):
 @wp.func
 def _cone_entry(a: wp.vec3, d: wp.vec3, radius: float, half_height: float):
     t_in, t_out, n = _cone_interval(a, d, radius, half_height)
-    s_in, s_out, s_n = _box_interval(
-        a, d, wp.vec3(-1.0e30, -1.0e30, -half_height), wp.vec3(1.0e30, 1.0e30, half_height)
-    )
-    if s_in > t_in:
-        t_in = s_in
-        n = s_n
-    return _convex_entry(t_in, wp.min(t_out, s_out), n)
+    return _capped_entry(a, d, t_in, t_out, n, half_height)
 
 
 @wp.func
