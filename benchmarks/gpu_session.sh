@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/archive/performance_notebook.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|collision|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|collision|box-runs|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
 set -u
 out=${1:?output folder}; shift
 export PYTHONUNBUFFERED=1
@@ -105,6 +105,17 @@ for what in "$@"; do
           --json "$out/dam_break_100k_terrain${tag}_${gpu}.json" 2>&1 | grep -A2 "^device"
       done
       python3 -m pytest -q -k cuda newton/tests/test_fluid_continuous_collision.py 2>&1 | tail -5 ;;
+    box-runs)
+      # the floating box of test_floating_box_comes_to_rest repeated at two non-affine dampings (its outcome on a GPU
+      # changes from run to run; docs/validation.rst "Floating box"), and the 100k pool and dam break at each
+      python3 docs/validation/floating_box/repeat_runs.py --device cuda:0 --runs 6 --damping 0.05 0.1 \
+        --json "$out/floating_box_repeat_${gpu}.json" 2>&1 | grep '^damping'
+      for v in 0.05 0.1; do
+        python3 -m benchmarks rest_column --device cuda:0 --n 50 --layers 40 --nonaffine-damping $v \
+          --json "$out/rest_column_50x50x40_damping_${v}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+        python3 -m benchmarks dam_break --nonaffine-damping $v --trials 3 \
+          --json "$out/dam_break_100k_damping_${v}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+      done ;;
     ncu)
       ncu --kernel-name regex:'build_fluid|compute_fluid_density|apply_fluid_density|apply_fluid_visc' \
         --launch-skip 40 --launch-count 4 --section SpeedOfLight --section Occupancy --section LaunchStats \
