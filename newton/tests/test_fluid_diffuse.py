@@ -16,6 +16,7 @@ from newton._src.solvers.xpbd.fluid.diffuse import (
     DIFFUSE_FOAM,
     DIFFUSE_SPRAY,
 )
+from newton.tests.test_fluid_continuous_collision import inside, surface_height
 
 D = 0.05
 FLUID = int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID)
@@ -25,7 +26,9 @@ DT = 1.0 / 240.0
 class Scene:
     """A box tank (inner half extents ``half``) with a fluid block ``dims`` at ``origin``."""
 
-    def __init__(self, device, dims, origin, velocity=(0.0, 0.0, 0.0), half=(0.25, 0.25), capacity=4096):
+    def __init__(
+        self, device, dims, origin, velocity=(0.0, 0.0, 0.0), half=(0.25, 0.25), capacity=4096, add_shape=None
+    ):
         builder = newton.ModelBuilder()
         builder.add_particle_grid(
             pos=wp.vec3(*origin),
@@ -55,6 +58,8 @@ class Scene:
             builder.add_shape_box(
                 -1, xform=wp.transform(wp.vec3(*center), wp.quat_identity()), hx=ext[0], hy=ext[1], hz=ext[2], cfg=cfg
             )
+        if add_shape is not None:
+            add_shape(builder, cfg)
         self.model = builder.finalize(device=device)
         self.model.particle_max_velocity = 0.25 * D / DT
         self.solver = newton.solvers.SolverXPBD(
@@ -151,6 +156,62 @@ def test_particles_die_at_end_of_life(test, device):
     scene.run(1)
     test.assertEqual(b.kind.numpy()[1], DIFFUSE_DEAD)
     test.assertTrue(np.all(b.lifetime.numpy()[:2] <= 0.0))
+
+
+# a hill over the tank's floor: 5 x 5 heights, its centre 0.2 m high
+HILL = newton.Heightfield(np.pad([[1.0]], 2), 5, 5, hx=0.25, hy=0.25, min_z=0.0, max_z=0.2)
+CENTRE = wp.transform(wp.vec3(0.0, 0.0, 0.1), wp.quat_identity())
+SHAPES = {
+    "cone": (
+        lambda b, cfg: b.add_shape_cone(-1, xform=CENTRE, radius=0.1, half_height=0.1, cfg=cfg),
+        lambda q: inside(newton.GeoType.CONE, (0.1, 0.1, 0.0), q - (0.0, 0.0, 0.1)),
+    ),
+    "ellipsoid": (
+        lambda b, cfg: b.add_shape_ellipsoid(-1, xform=CENTRE, rx=0.1, ry=0.08, rz=0.1, cfg=cfg),
+        lambda q: inside(newton.GeoType.ELLIPSOID, (0.1, 0.08, 0.1), q - (0.0, 0.0, 0.1)),
+    ),
+    "mesh": (
+        lambda b, cfg: b.add_shape_mesh(-1, xform=CENTRE, mesh=newton.Mesh.create_box(0.08), cfg=cfg),
+        lambda q: inside(newton.GeoType.BOX, (0.08, 0.08, 0.08), q - (0.0, 0.0, 0.1)),
+    ),
+    "heightfield": (
+        lambda b, cfg: b.add_shape_heightfield(heightfield=HILL, cfg=cfg),
+        lambda q: q[:, 2] < surface_height(HILL.data, HILL.hx, HILL.hy, HILL.min_z, HILL.max_z, q[:, 0], q[:, 1]),
+    ),
+}
+
+
+def test_spray_stays_out_of_every_shape_type(test, device):
+    # spray thrown down at 3 m/s onto a cone, an ellipsoid, a triangle mesh and a terrain's hill in the tank
+    rng = np.random.default_rng(2)
+    for kind, (add_shape, inside_shape) in SHAPES.items():
+        with test.subTest(shape=kind):
+            # 128 seeded in the ring's last slots (what the fluid's block emits as it settles fills the first);
+            # the block sits in a corner of a 1 m tank, out of reach of the spray sliding off the shape
+            scene = Scene(
+                device, (3, 3, 2), (-0.45, -0.45, 0.5 * D), half=(0.5, 0.5), capacity=512, add_shape=add_shape
+            )
+            b = scene.solver._fluid.diffuse
+            n, seeded = 128, np.arange(512) >= 384
+            q = np.zeros((512, 3), dtype=np.float32)
+            q[seeded, :2] = rng.uniform(-0.07, 0.07, (n, 2))
+            q[seeded, 2] = rng.uniform(0.4, 0.6, n)
+            b.position.assign(q)
+            b.velocity.assign(np.tile(np.array([0.0, 0.0, -3.0], dtype=np.float32), (512, 1)))
+            b.lifetime.assign(np.where(seeded, 3.0, 0.0).astype(np.float32))
+            b.kind.assign(np.where(seeded, DIFFUSE_SPRAY, DIFFUSE_DEAD).astype(np.int32))
+            b.world.fill_(int(scene.model.particle_world.numpy()[0]))
+            most_inside = 0
+            for _ in range(60):
+                scene.run(1)
+                alive = b.kind.numpy() != DIFFUSE_DEAD
+                most_inside = max(most_inside, int(np.count_nonzero(inside_shape(b.position.numpy()[alive]))))
+            test.assertEqual(most_inside, 0)
+            # the seeded ones came to the shape and rest on it (not killed on the way)
+            test.assertLess(scene.emitted(), 384)
+            alive = (b.kind.numpy() != DIFFUSE_DEAD) & seeded
+            test.assertGreater(int(alive.sum()), n // 2)
+            test.assertLess(float(b.position.numpy()[alive, 2].max()), 0.25)
 
 
 def test_no_effect_on_fluid(test, device):

@@ -12,8 +12,10 @@ inside a shape leaves it in the same substep:
    (a kernel-weighted mean over the fluid particles within h); it is classified by how many fluid
    particles are within h: *spray* (fewer than ``SPRAY_MAX_NEIGHBORS``) flies ballistically under
    gravity, *foam* (in between) moves with the fluid, *bubble* (at least ``BUBBLE_MIN_NEIGHBORS``)
-   rises against gravity and is dragged toward the fluid velocity. Shapes (planes, boxes, spheres,
-   capsules) push it out and remove its velocity into them (one caught where shapes overlap dies).
+   rises against gravity and is dragged toward the fluid velocity. The shapes that collide with
+   particles in its world, of every type the fluid's continuous collision knows (those of dynamic
+   bodies too, where they are), push it out and remove its velocity into them (one caught where
+   shapes overlap dies).
    Its lifetime runs down; at zero it dies.
 2. **emit**: each fluid particle has a trapped-air potential (the relative speed of neighbours
    approaching it, ``sum |v_ij| (1 - v_ij.x_ij / |v_ij||x_ij|) (1 - r/h)`` [m/s]) and a wave-crest
@@ -29,7 +31,7 @@ so the passes can be captured in a graph. Nothing here feeds back into the fluid
 
 import warp as wp
 
-from .continuous_collision import shape_distance
+from .continuous_collision import GuardedShapes, guarded_surface_distance, shape_poses, world_row
 from .neighbors import _NO_WORLD, fluid_cell, fluid_cell_hash, fluid_cell_range
 from .sph import FluidParams, FluidSlots, neighbor_sum
 
@@ -54,6 +56,7 @@ LIFETIME_MIN = wp.constant(1.0)  # [s]
 LIFETIME_MAX = wp.constant(3.0)
 BUBBLE_BUOYANCY = wp.constant(2.0)  # upward acceleration of a bubble, in units of |g|
 BUBBLE_DRAG = wp.constant(0.5)  # per-substep blend of a bubble's velocity toward the fluid's
+PUSH_SLOP = wp.constant(1.0e-3)  # a push out of a shape ends this share of the radius past it
 
 
 @wp.struct
@@ -183,13 +186,8 @@ def advect_diffuse_particles(
     cell_bits: int,
     table_mask: int,
     gravity: wp.array[wp.vec3],
-    shape_type: wp.array[wp.int32],
-    shape_scale: wp.array[wp.vec3],
-    shape_transform: wp.array[wp.transform],
-    shape_body: wp.array[wp.int32],
-    shape_world: wp.array[wp.int32],
-    body_q: wp.array[wp.transform],
-    shape_count: int,
+    shapes: GuardedShapes,
+    any_shapes: int,
     dt: float,
     # outputs
     buffers: DiffuseBuffers,
@@ -255,23 +253,36 @@ def advect_diffuse_particles(
     # push out of every shape; where shapes overlap (tank corners) one push can land in the next
     # shape, so a second round follows, and a particle still inside after it dies
     trapped = int(0)
+    row = int(0)
+    if any_shapes != 0:
+        row = world_row(world, shapes.world_count)
     for push_round in range(3):
         trapped = int(0)
-        for s in range(shape_count):
-            sw = shape_world[s]
-            if sw >= 0 and world >= 0 and sw != world:
+        if any_shapes == 0:
+            break
+        for k_shape in range(shapes.row_start[row], shapes.row_start[row + 1]):
+            s = shapes.shape[k_shape]
+            lo = shapes.lower[s]
+            hi = shapes.upper[s]
+            if (
+                x[0] + radius < lo[0]
+                or x[1] + radius < lo[1]
+                or x[2] + radius < lo[2]
+                or x[0] - radius > hi[0]
+                or x[1] - radius > hi[1]
+                or x[2] - radius > hi[2]
+            ):
                 continue
-            xf = shape_transform[s]
-            b = shape_body[s]
-            if b >= 0:
-                xf = body_q[b] * shape_transform[s]
+            # (held where they are: both poses are the current one)
+            _held, xf = shape_poses(shapes, s)
             local = wp.transform_point(wp.transform_inverse(xf), x)
-            hit = shape_distance(shape_type[s], shape_scale[s], local)
+            hit = guarded_surface_distance(shapes, s, local, p.h)
             if hit[3] < radius:
                 trapped = int(1)
                 if push_round < 2:
                     n = wp.transform_vector(xf, wp.vec3(hit[0], hit[1], hit[2]))
-                    x = x + (radius - hit[3]) * n
+                    # (a hair past the radius: the next round's measure, rounded, must not find it inside again)
+                    x = x + ((1.0 + PUSH_SLOP) * radius - hit[3]) * n
                     vn = wp.dot(v, n)
                     if vn < 0.0:
                         v = v - vn * n

@@ -257,8 +257,11 @@ class FluidSolver:
             self.placement_packed = wp.zeros(rows, dtype=wp.int32)
             self.placement_rounds_left = wp.zeros(1, dtype=wp.int32)
         # (every shape that collides with particles, dynamic bodies' held where they are: fluid placed in a
-        # body is moved out of it, positions only, rather than thrown out by its contacts)
-        self.placement_guard = ContinuousCollision.build(model, dynamic=True) if config.fluid_relax_overpacked else None
+        # body is moved out of it, positions only, rather than thrown out by its contacts; diffuse particles
+        # are pushed out of the same shapes)
+        needs_shapes = config.fluid_relax_overpacked or self.diffuse is not None
+        self.shape_guard = ContinuousCollision.build(model, dynamic=True) if needs_shapes else None
+        self.placement_guard = self.shape_guard if config.fluid_relax_overpacked else None
         # (which meshes have an inside, for the contacts the relaxation finds again; without a guard no mesh
         # meets particles, or nothing relaxes)
         self.shape_solid = (
@@ -603,7 +606,10 @@ class FluidSolver:
     def _diffuse_pass(self, state_out, dt: float) -> None:
         """Let the fluid emit diffuse particles, then advect them all (new ones leave shapes at once)."""
         s, m, b = self.search, self.model, self.diffuse
-        body_q = state_out.body_q if state_out.body_q is not None else self._no_bodies
+        shapes = GuardedShapes()
+        if self.shape_guard is not None:
+            self.shape_guard.hold(state_out.body_q, state_out.body_qd)
+            shapes = self.shape_guard.shapes
         # the step's result in slot order (after the viscosity and vorticity passes changed the velocities)
         wp.launch(
             gather_fluid_state,
@@ -633,13 +639,8 @@ class FluidSolver:
                 s.cell_bits,
                 s.mask,
                 m.gravity,
-                m.shape_type,
-                m.shape_scale,
-                m.shape_transform,
-                m.shape_body,
-                m.shape_world,
-                body_q,
-                m.shape_count,
+                shapes,
+                int(self.shape_guard is not None),
                 dt,
             ],
             outputs=[b],
