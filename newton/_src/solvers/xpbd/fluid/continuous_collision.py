@@ -591,6 +591,22 @@ def surface_distance(shape_type: int, scale: wp.vec3, source: wp.uint64, solid: 
 
 
 @wp.func
+def near_shape(shapes: GuardedShapes, s: int, x: wp.vec3, reach: float):
+    """Whether ``x`` lies within ``reach`` [m] of guarded shape ``s``'s world bounds (most points are far from
+    most shapes: their bounds part)."""
+    lo = shapes.lower[s]
+    hi = shapes.upper[s]
+    return not (
+        x[0] + reach < lo[0]
+        or x[1] + reach < lo[1]
+        or x[2] + reach < lo[2]
+        or x[0] - reach > hi[0]
+        or x[1] - reach > hi[1]
+        or x[2] - reach > hi[2]
+    )
+
+
+@wp.func
 def guarded_surface_distance(shapes: GuardedShapes, s: int, p: wp.vec3, reach: float):
     """:func:`surface_distance` of guarded shape ``s`` at local ``p``, heightfields included."""
     if shapes.shape_type[s] == GeoType.HFIELD:

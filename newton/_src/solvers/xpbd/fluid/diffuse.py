@@ -31,7 +31,7 @@ so the passes can be captured in a graph. Nothing here feeds back into the fluid
 
 import warp as wp
 
-from .continuous_collision import GuardedShapes, guarded_surface_distance, shape_poses, world_row
+from .continuous_collision import GuardedShapes, guarded_surface_distance, near_shape, shape_poses, world_row
 from .neighbors import _NO_WORLD, fluid_cell, fluid_cell_hash, fluid_cell_range
 from .sph import FluidParams, FluidSlots, neighbor_sum
 
@@ -262,16 +262,7 @@ def advect_diffuse_particles(
             break
         for k_shape in range(shapes.row_start[row], shapes.row_start[row + 1]):
             s = shapes.shape[k_shape]
-            lo = shapes.lower[s]
-            hi = shapes.upper[s]
-            if (
-                x[0] + radius < lo[0]
-                or x[1] + radius < lo[1]
-                or x[2] + radius < lo[2]
-                or x[0] - radius > hi[0]
-                or x[1] - radius > hi[1]
-                or x[2] - radius > hi[2]
-            ):
+            if not near_shape(shapes, s, x, radius):
                 continue
             # (held where they are: both poses are the current one)
             _held, xf = shape_poses(shapes, s)

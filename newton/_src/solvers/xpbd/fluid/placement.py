@@ -52,6 +52,7 @@ from .continuous_collision import (
     GuardedShapes,
     first_shape_entry,
     guarded_surface_distance,
+    near_shape,
     shape_poses,
     surface_distance,
     world_row,
@@ -194,16 +195,7 @@ def list_shape_walls(
     count = int(0)
     for k in range(shapes.row_start[row], shapes.row_start[row + 1]):
         s = shapes.shape[k]
-        lo = shapes.lower[s]
-        hi = shapes.upper[s]
-        if (
-            x[0] + h < lo[0]
-            or x[1] + h < lo[1]
-            or x[2] + h < lo[2]
-            or x[0] - h > hi[0]
-            or x[1] - h > hi[1]
-            or x[2] - h > hi[2]
-        ):
+        if not near_shape(shapes, s, x, h):
             continue
         start, pose = shape_poses(shapes, s)
         local = wp.transform_point(wp.transform_inverse(pose), x)
