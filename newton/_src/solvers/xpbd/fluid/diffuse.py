@@ -252,15 +252,17 @@ def advect_diffuse_particles(
     radius = 0.25 * p.rest_distance
     # push out of every shape; where shapes overlap (tank corners) one push can land in the next
     # shape, so a second round follows, and a particle still inside after it dies
-    trapped = int(0)
-    row = int(0)
+    # (the shapes of its world and the global ones; none without a guard)
+    first_shape = int(0)
+    end_shape = int(0)
     if any_shapes != 0:
         row = world_row(world, shapes.world_count)
+        first_shape = shapes.row_start[row]
+        end_shape = shapes.row_start[row + 1]
+    trapped = int(0)
     for push_round in range(3):
         trapped = int(0)
-        if any_shapes == 0:
-            break
-        for k_shape in range(shapes.row_start[row], shapes.row_start[row + 1]):
+        for k_shape in range(first_shape, end_shape):
             s = shapes.shape[k_shape]
             if not near_shape(shapes, s, x, radius):
                 continue

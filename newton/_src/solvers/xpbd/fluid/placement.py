@@ -46,19 +46,16 @@ device and reported, with a warning, by the next ``fluid_diagnostics`` call.
 
 import warp as wp
 
-from ....geometry import GeoType, ParticleFlags
-from ....utils.heightfield import HeightfieldData
+from ....geometry import ParticleFlags
 from .continuous_collision import (
     GuardedShapes,
     first_shape_entry,
     guarded_surface_distance,
     near_shape,
     shape_poses,
-    surface_distance,
     world_row,
 )
 from .density_constraint import CorrectionSlot, density_correction_sum, relaxed_correction
-from .heightfields import heightfield_distance
 from .sph import FluidParams, FluidSlots
 from .walls import WALL_CONTACTS_PER_SLOT
 
@@ -375,13 +372,8 @@ def refresh_relaxed_contacts(
     particle_q: wp.array[wp.vec3],
     world_count: int,
     placed: wp.array[wp.int32],
-    shape_type: wp.array[wp.int32],
-    shape_scale: wp.array[wp.vec3],
-    shape_source: wp.array[wp.uint64],
-    shape_solid: wp.array[wp.int32],
-    shape_heightfield: wp.array[wp.int32],
-    heightfield: wp.array[HeightfieldData],
-    heightfield_elevation: wp.array[wp.float32],
+    shapes: GuardedShapes,
+    measured: int,
     shape_transform: wp.array[wp.transform],
     shape_body: wp.array[int],
     body_q: wp.array[wp.transform],
@@ -394,9 +386,10 @@ def refresh_relaxed_contacts(
     They were found at the packed positions: a particle moved out of a box through another face than
     the one its contact names would be pushed back through the box. Each such contact becomes the
     plane at the shape's surface point nearest to where the particle is now
-    (:func:`~.continuous_collision.surface_distance`, :func:`~.heightfields.heightfield_distance`); for a
-    shape it does not measure (a barrel-sided cylinder) the plane is put a metre behind the particle, out
-    of reach for the step (the next collision finds it again).
+    (:func:`~.continuous_collision.guarded_surface_distance` of ``shapes``, the placement's guard, while
+    ``measured``); for a shape it does not measure (a barrel-sided cylinder, or any without a guard) the
+    plane is put a metre behind the particle, out of reach for the step (the next collision finds it
+    again).
     """
     k = wp.tid()
     if k >= wp.min(contact_count[0], contact_max):
@@ -414,11 +407,9 @@ def refresh_relaxed_contacts(
     pose = body * shape_transform[s]
     x = particle_q[pi]
     local = wp.transform_point(wp.transform_inverse(pose), x)
-    hit = wp.vec4()
-    if shape_type[s] == GeoType.HFIELD:
-        hit = heightfield_distance(heightfield[shape_heightfield[s]], heightfield_elevation, local)
-    else:
-        hit = surface_distance(shape_type[s], shape_scale[s], shape_source[s], shape_solid[s], local, 1.0e6)
+    hit = wp.vec4(0.0, 0.0, 1.0, 1.0e10)
+    if measured != 0:
+        hit = guarded_surface_distance(shapes, s, local, 1.0e6)
     normal = contact_normal[k]
     surface = x - normal
     if hit[3] < 1.0e9:

@@ -36,7 +36,7 @@ from .config import (
     free_memory,
     real_in_range,
 )
-from .continuous_collision import GUARD_ROUNDS, ContinuousCollision, GuardedShapes, model_heightfields, still_shapes
+from .continuous_collision import GUARD_ROUNDS, ContinuousCollision, GuardedShapes, still_shapes
 from .density_constraint import (
     APPLY_ADVANCE,
     APPLY_AS_XPBD,
@@ -262,14 +262,6 @@ class FluidSolver:
         needs_shapes = config.fluid_relax_overpacked or self.diffuse is not None
         self.shape_guard = ContinuousCollision.build(model, dynamic=True) if needs_shapes else None
         self.placement_guard = self.shape_guard if config.fluid_relax_overpacked else None
-        # (which meshes have an inside, for the contacts the relaxation finds again; without a guard no mesh
-        # meets particles, or nothing relaxes)
-        self.shape_solid = (
-            self.placement_guard.shapes.shape_solid
-            if self.placement_guard is not None
-            else wp.zeros(max(model.shape_count, 1), dtype=wp.int32, device=self.device)
-        )
-        self.shape_heightfields = model_heightfields(model)
         # the second stream (see FluidTuning.concurrent_passes), and whether work on it has not been joined yet
         concurrent = self.device.is_cuda and self.tuning.concurrent_passes
         self.side_stream = wp.Stream(self.device) if concurrent else None
@@ -815,11 +807,8 @@ class FluidSolver:
                     state.particle_q,
                     int(m.world_count),
                     self.placed,
-                    m.shape_type,
-                    m.shape_scale,
-                    m.shape_source_ptr,
-                    self.shape_solid,
-                    *self.shape_heightfields,
+                    self.placement_guard.shapes if self.placement_guard is not None else GuardedShapes(),
+                    int(self.placement_guard is not None),
                     m.shape_transform,
                     m.shape_body,
                     state.body_q if state.body_q is not None else self._no_bodies,
