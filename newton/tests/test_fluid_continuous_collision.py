@@ -56,6 +56,11 @@ def inside(shape_type, scale, p):
     if shape_type == newton.GeoType.ELLIPSOID:
         return np.linalg.norm(p / scale, axis=1) <= 1.0
     if shape_type == newton.GeoType.CYLINDER:
+        if scale[2] > 0.0:
+            # barrel-sided: the profile's radius at height z is c + sqrt(barrel^2 - z^2)
+            c = scale[0] - np.sqrt(scale[2] ** 2 - scale[1] ** 2)
+            profile = c + np.sqrt(np.maximum(scale[2] ** 2 - z * z, 0.0))
+            return (np.hypot(x, y) <= profile) & (np.abs(z) <= scale[1])
         return (np.hypot(x, y) <= scale[0]) & (np.abs(z) <= scale[1])
     if shape_type == newton.GeoType.CAPSULE:
         return np.linalg.norm(p - np.stack([0 * x, 0 * y, np.clip(z, -scale[1], scale[1])], axis=1), axis=1) <= scale[0]
@@ -91,6 +96,9 @@ def test_path_entries_match_sampling(test, device):
         (newton.GeoType.SPHERE, (0.7, 0.0, 0.0)),
         (newton.GeoType.ELLIPSOID, (0.8, 0.4, 0.6)),
         (newton.GeoType.CYLINDER, (0.5, 0.7, 0.0)),
+        # barrel-sided: a strong bulge (0.5 -> 0.77 m) and a slight one
+        (newton.GeoType.CYLINDER, (0.5, 0.7, 1.0)),
+        (newton.GeoType.CYLINDER, (0.5, 0.7, 4.0)),
         (newton.GeoType.CAPSULE, (0.4, 0.6, 0.0)),
         (newton.GeoType.CONE, (0.8, 0.6, 0.0)),
         (newton.GeoType.PLANE, (0.0, 0.0, 0.0)),
@@ -346,9 +354,63 @@ def test_cone_and_ellipsoid_distances(test, device):
     np.testing.assert_allclose(out.numpy()[:, 3], np.linalg.norm(p, axis=1) - 0.7, atol=1.0e-5)
 
 
+def barrel_depth(scale, p):
+    """How deep [m] each point of ``p`` (N, 3) is inside the barrel-sided cylinder of ``scale`` (numpy, its frame;
+    negative: outside): the distance to its surface, sampled densely in the half-plane of the point and the axis."""
+    r, hh, barrel = scale
+    c = r - np.sqrt(barrel**2 - hh**2)
+    # by angle: the arc turns horizontal at the rim where its end radius is the barrel's
+    angle = np.linspace(-np.arcsin(hh / barrel), np.arcsin(hh / barrel), 20001)
+    arc = np.stack([c + barrel * np.cos(angle), barrel * np.sin(angle)], axis=1)
+    rim = np.linspace(0.0, r, 4001)
+    ends = np.concatenate([np.stack([rim, np.full_like(rim, hh)], 1), np.stack([rim, np.full_like(rim, -hh)], 1)])
+    boundary = np.concatenate([arc, ends])
+    q = np.stack([np.hypot(p[:, 0], p[:, 1]), p[:, 2]], axis=1)
+    distance = np.array([np.min(np.linalg.norm(boundary - point, axis=1)) for point in q])
+    return np.where(inside(newton.GeoType.CYLINDER, np.asarray(scale), p), distance, -distance)
+
+
+def test_barrel_cylinder_distance(test, device):
+    """The placement's measure of a barrel-sided cylinder is its signed distance, and a straight one's in the
+    limit of a flat arc."""
+    rng = np.random.default_rng(9)
+    p = rng.uniform(-1.2, 1.2, (1500, 3))
+    out = wp.zeros(len(p), dtype=wp.vec4, device=device)
+    points = wp.array(p, dtype=wp.vec3, device=device)
+    for barrel in ((0.5, 0.7, 0.7), (0.5, 0.7, 1.0), (0.3, 0.4, 3.0)):
+        wp.launch(
+            distances_of_points,
+            dim=len(p),
+            inputs=[int(newton.GeoType.CYLINDER), wp.vec3(*barrel), points, out],
+            device=device,
+        )
+        e = out.numpy().astype(np.float64)
+        # (within the reference's sampling of the arc)
+        np.testing.assert_allclose(e[:, 3], -barrel_depth(barrel, p), atol=2.0e-4, err_msg=str(barrel))
+        np.testing.assert_allclose(np.linalg.norm(e[:, :3], axis=1), 1.0, atol=1.0e-4)
+        # the nearest surface point is where the normal says
+        away = np.abs(e[:, 3]) > 1.0e-3
+        foot = p[away] - e[away, 3:4] * e[away, :3]
+        np.testing.assert_allclose(barrel_depth(barrel, foot), 0.0, atol=2.0e-4, err_msg=str(barrel))
+    straight = wp.zeros_like(out)
+    wp.launch(
+        distances_of_points,
+        dim=len(p),
+        inputs=[int(newton.GeoType.CYLINDER), wp.vec3(0.5, 0.7, 1.0e4), points, out],
+        device=device,
+    )
+    wp.launch(
+        distances_of_points,
+        dim=len(p),
+        inputs=[int(newton.GeoType.CYLINDER), wp.vec3(0.5, 0.7, 0.0), points, straight],
+        device=device,
+    )
+    np.testing.assert_allclose(out.numpy()[:, 3], straight.numpy()[:, 3], atol=1.0e-4)
+
+
 def thrown_onto(device, kind, substeps, **kwargs):
-    """The block of :func:`run_thrown_block` thrown at 20 m/s onto a static cone or a rough terrain on the tank's
-    floor: the most centres more than 0.3 spacings inside it at once, and the diagnostics."""
+    """The block of :func:`run_thrown_block` thrown at 20 m/s onto a static cone, a barrel-sided cylinder (its side
+    bulging from 0.3 to 0.43 m) or a rough terrain on the tank's floor: the most centres more than 0.3 spacings inside it at once, and the diagnostics."""
     rng = np.random.default_rng(3)
     builder = newton.ModelBuilder()
     add_block(builder, (5, 5, 5), origin=(0.4, 0.4, 0.7), vel=(0.0, 0.0, -20.0), jitter=0.02 * D)
@@ -358,8 +420,13 @@ def thrown_onto(device, kind, substeps, **kwargs):
     xform = wp.transform(wp.vec3(*centre), wp.quat_identity())
     scale = (0.45, 0.3, 0.0)
     field = newton.Heightfield(rng.uniform(0.0, 1.0, (5, 5)), 5, 5, hx=0.5 * TANK, hy=0.5 * TANK, min_z=0.0, max_z=0.4)
+    barrel = (0.3, 0.3, 0.4)
     if kind == "cone":
         builder.add_shape_cone(-1, xform=xform, radius=scale[0], half_height=scale[1], cfg=cfg)
+    elif kind == "barrel":
+        builder.add_shape_cylinder(
+            -1, xform=xform, radius=barrel[0], half_height=barrel[1], barrel_radius=barrel[2], cfg=cfg
+        )
     else:
         builder.add_shape_heightfield(xform=wp.transform(wp.vec3(*centre[:2], 0.0)), heightfield=field, cfg=cfg)
     model = builder.finalize(device=device)
@@ -372,6 +439,8 @@ def thrown_onto(device, kind, substeps, **kwargs):
         assert np.isfinite(q).all()
         if kind == "cone":
             depth = cone_depth(scale, q - centre)
+        elif kind == "barrel":
+            depth = barrel_depth(barrel, q - centre)
         else:
             local = q - (centre[0], centre[1], 0.0)
             depth = surface_height(field.data, field.hx, field.hy, 0.0, 0.4, local[:, 0], local[:, 1]) - local[:, 2]
@@ -380,10 +449,10 @@ def thrown_onto(device, kind, substeps, **kwargs):
     return most, report(sim)
 
 
-def test_thrown_block_stays_out_of_cone_and_terrain(test, device):
+def test_thrown_block_stays_out_of_cone_barrel_and_terrain(test, device):
     # the shapes upstream's contacts know besides the ones of the tank test: 3.3 spacings per substep at one
     # substep per frame, then the whole tank's fall at eight
-    for kind in ("cone", "heightfield"):
+    for kind in ("cone", "barrel", "heightfield"):
         with test.subTest(shape=kind):
             for substeps in (1, 8):
                 inside_it, (stats, _) = thrown_onto(device, kind, substeps)

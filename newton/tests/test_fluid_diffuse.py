@@ -166,6 +166,13 @@ SHAPES = {
         lambda b, cfg: b.add_shape_cone(-1, xform=CENTRE, radius=0.1, half_height=0.1, cfg=cfg),
         lambda q: inside(newton.GeoType.CONE, (0.1, 0.1, 0.0), q - (0.0, 0.0, 0.1)),
     ),
+    "barrel": (
+        # a barrel-sided cylinder whose side bulges from 0.07 to 0.1 m
+        lambda b, cfg: b.add_shape_cylinder(
+            -1, xform=CENTRE, radius=0.07, half_height=0.1, barrel_radius=0.18, cfg=cfg
+        ),
+        lambda q: inside(newton.GeoType.CYLINDER, (0.07, 0.1, 0.18), q - (0.0, 0.0, 0.1)),
+    ),
     "ellipsoid": (
         lambda b, cfg: b.add_shape_ellipsoid(-1, xform=CENTRE, rx=0.1, ry=0.08, rz=0.1, cfg=cfg),
         lambda q: inside(newton.GeoType.ELLIPSOID, (0.1, 0.08, 0.1), q - (0.0, 0.0, 0.1)),
@@ -182,7 +189,7 @@ SHAPES = {
 
 
 def test_spray_stays_out_of_every_shape_type(test, device):
-    # spray thrown down at 3 m/s onto a cone, an ellipsoid, a triangle mesh and a terrain's hill in the tank
+    # spray thrown down at 3 m/s onto a cone, a barrel, an ellipsoid, a triangle mesh and a terrain's hill in the tank
     rng = np.random.default_rng(2)
     for kind, (add_shape, inside_shape) in SHAPES.items():
         with test.subTest(shape=kind):

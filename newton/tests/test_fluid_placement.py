@@ -167,6 +167,8 @@ def inside_static_shape(kind, q, centre, half):
     local = q - centre
     if kind == "cylinder":
         return (np.linalg.norm(local[:, :2], axis=1) < half) & (np.abs(local[:, 2]) < half)
+    if kind == "barrel":
+        return inside(newton.GeoType.CYLINDER, (0.7 * half, half, 1.8 * half), local)
     if kind == "cone":
         return inside(newton.GeoType.CONE, (half, half, 0.0), local)
     if kind == "ellipsoid":
@@ -179,8 +181,8 @@ def inside_static_shape(kind, q, centre, half):
 
 
 def test_fluid_placed_inside_a_static_shape_moves_out(test, device):
-    # a static box, a watertight triangle-mesh box, a cylinder, a cone and an ellipsoid in the middle of a block at
-    # its rest spacing, and a terrain whose hill rises under it
+    # a static box, a watertight triangle-mesh box, a straight and a barrel-sided cylinder, a cone and an ellipsoid
+    # in the middle of a block at its rest spacing, and a terrain whose hill rises under it
     centre, half = np.array([0.5 * EDGE, 0.5 * EDGE, 0.25]), 0.12
     cfg = newton.ModelBuilder.ShapeConfig(mu=0.0)
     xform = wp.transform(wp.vec3(*centre), wp.quat_identity())
@@ -190,6 +192,10 @@ def test_fluid_placed_inside_a_static_shape_moves_out(test, device):
             -1, xform=xform, mesh=newton.Mesh.create_box(half, duplicate_vertices=False), cfg=cfg
         ),
         "cylinder": lambda b: b.add_shape_cylinder(-1, xform=xform, radius=half, half_height=half, cfg=cfg),
+        # (its side bulges from 0.7 to 1.0 times the half size)
+        "barrel": lambda b: b.add_shape_cylinder(
+            -1, xform=xform, radius=0.7 * half, half_height=half, barrel_radius=1.8 * half, cfg=cfg
+        ),
         "cone": lambda b: b.add_shape_cone(-1, xform=xform, radius=half, half_height=half, cfg=cfg),
         "ellipsoid": lambda b: b.add_shape_ellipsoid(-1, xform=xform, rx=half, ry=0.8 * half, rz=half, cfg=cfg),
         "heightfield": lambda b: b.add_shape_heightfield(

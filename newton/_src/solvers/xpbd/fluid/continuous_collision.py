@@ -20,8 +20,8 @@ stops just before its first entry.
 
 Boxes, spheres, capsules, cylinders, cones, ellipsoids and planes are intersected exactly; triangle
 meshes (and convex hulls) by a ray cast against their BVH; heightfields triangle by triangle along the
-cells the path crosses (:mod:`.heightfields`). Barrel-sided cylinders are left to upstream's contacts.
-Shapes of dynamic bodies are left to them too: they take the fluid's reaction, which a hard stop would
+cells the path crosses (:mod:`.heightfields`); barrel-sided cylinders (convex) by Newton's method on
+the path's distance outside their side. Shapes of dynamic bodies are left to them too: they take the fluid's reaction, which a hard stop would
 not give them.
 """
 
@@ -43,6 +43,8 @@ NO_ENTRY = wp.constant(2.0)
 GUARD_ROUNDS = 4
 # the stop before an entry, as a share of the path (keeps the stopped centre outside under rounding)
 STOP_SHORT = wp.constant(1.0e-4)
+# most Newton steps into a barrel-sided cylinder's side (they converge from outside, quadratically once close)
+BARREL_STEPS = wp.constant(24)
 # shape types this pass intersects
 GUARDED_TYPES = (
     GeoType.PLANE,
@@ -177,6 +179,76 @@ def _cylinder_entry(a: wp.vec3, d: wp.vec3, radius: float, half_height: float):
 
 
 @wp.func
+def barrel_bulge(z: float, half_height: float, barrel: float):
+    """How far [m] a barrel-sided cylinder's side stands out at height ``z`` beyond its ends' radius.
+
+    The side is an arc of radius ``barrel`` through both rims, revolved about the axis:
+    ``sqrt(barrel^2 - z^2) - sqrt(barrel^2 - half_height^2)``, written without the difference of two near
+    numbers that a flat arc (a large ``barrel``) would round away.
+    """
+    return (half_height * half_height - z * z) / (
+        wp.sqrt(wp.max(barrel * barrel - z * z, 0.0))
+        + wp.sqrt(wp.max(barrel * barrel - half_height * half_height, 0.0))
+    )
+
+
+@wp.func
+def _barrel_excess(p: wp.vec3, d: wp.vec3, radius: float, barrel: float, half_height: float):
+    """How far ``p`` lies outside a barrel-sided cylinder's side (its distance from the axis less the profile's
+    radius at its height, ``g``), and ``g``'s rate along ``d``."""
+    rho = wp.sqrt(p[0] * p[0] + p[1] * p[1])
+    root = wp.sqrt(wp.max(barrel * barrel - p[2] * p[2], 1.0e-12 * barrel * barrel))
+    rate = p[2] * d[2] / root
+    if rho > 0.0:
+        rate += (p[0] * d[0] + p[1] * d[1]) / rho
+    return rho - radius - barrel_bulge(p[2], half_height, barrel), rate
+
+
+@wp.func
+def _barrel_entry(a: wp.vec3, d: wp.vec3, radius: float, half_height: float, barrel: float):
+    """The entry of ``a + t d`` into a barrel-sided cylinder (end radius ``radius``, half height ``half_height``,
+    side arc of radius ``barrel``).
+
+    The solid is convex (a distance from the axis below a concave profile), so its excess ``g`` (see
+    :func:`_barrel_excess`) is convex along the path: Newton's steps from the path's start in the slab
+    ``|z| <= half_height`` approach the first root from below, never past it, and a rate that no longer falls
+    means the path misses.
+    """
+    s_in, s_out, s_n = _box_interval(
+        a, d, wp.vec3(-1.0e30, -1.0e30, -half_height), wp.vec3(1.0e30, 1.0e30, half_height)
+    )
+    lo = wp.max(s_in, 0.0)
+    hi = wp.min(s_out, 1.0)
+    if lo > hi:
+        return _no_entry()
+    t = lo
+    g, rate = _barrel_excess(a + t * d, d, radius, barrel, half_height)
+    if g <= 0.0:
+        if s_in >= 0.0:
+            # through an end cap
+            return _entry(s_in, s_n)
+        return _no_entry()
+    # stop within a millionth of the shape's size of the side
+    tolerance = 1.0e-6 * (radius + half_height)
+    # a while loop: Warp would unroll a loop over a constant count
+    k = int(0)
+    while g > tolerance and k < BARREL_STEPS:
+        if rate >= 0.0:
+            return _no_entry()
+        t = t - g / rate
+        if t > hi:
+            return _no_entry()
+        g, rate = _barrel_excess(a + t * d, d, radius, barrel, half_height)
+        k += 1
+    p = a + t * d
+    rho = wp.sqrt(p[0] * p[0] + p[1] * p[1])
+    side = wp.where(rho > 0.0, wp.vec3(p[0], p[1], 0.0) / wp.max(rho, 1.0e-12), wp.vec3(1.0, 0.0, 0.0))
+    # the arc's outward normal, (sqrt(barrel^2 - z^2), z) / barrel
+    n = wp.normalize(wp.sqrt(wp.max(barrel * barrel - p[2] * p[2], 0.0)) * side + wp.vec3(0.0, 0.0, p[2]))
+    return _entry(t, n)
+
+
+@wp.func
 def _cone_interval(a: wp.vec3, d: wp.vec3, radius: float, half_height: float):
     """Parameters where ``a + t d`` enters and leaves the infinite cone of the z axis with its apex at
     ``half_height`` opening downwards to ``radius`` at ``-half_height`` (its nappe below the apex), and the
@@ -290,6 +362,8 @@ def segment_entry(shape_type: int, scale: wp.vec3, source: wp.uint64, a: wp.vec3
             return _no_entry()
         return _entry(t_in, wp.normalize(wp.cw_div(n, scale)))
     if shape_type == GeoType.CYLINDER:
+        if scale[2] > 0.0:
+            return _barrel_entry(a, d, scale[0], scale[1], scale[2])
         return _cylinder_entry(a, d, scale[0], scale[1])
     if shape_type == GeoType.CONE:
         return _cone_entry(a, d, scale[0], scale[1])
@@ -500,6 +574,51 @@ def cylinder_distance(scale: wp.vec3, p: wp.vec3):
 
 
 @wp.func
+def barrel_distance(scale: wp.vec3, p: wp.vec3):
+    """Signed distance [m] (xyz: outward normal, w: distance) of local ``p`` to a barrel-sided cylinder along z
+    (end radius ``scale[0]``, half height ``scale[1]``, side arc of radius ``scale[2]``).
+
+    In the half-plane of ``p`` and the axis, folded to ``z >= 0``, the surface is the end's segment and the arc
+    of radius ``scale[2]`` whose centre lies ``s = sqrt(scale[2]^2 - scale[1]^2)`` inside the rim's radius, from
+    mid-height up to the rim. Offsets are taken from the rim, so a flat arc keeps its precision.
+    """
+    r = scale[0]
+    hh = scale[1]
+    barrel = scale[2]
+    rho = wp.sqrt(p[0] * p[0] + p[1] * p[1])
+    side = wp.where(rho > 0.0, wp.vec3(p[0], p[1], 0.0) / wp.max(rho, 1.0e-12), wp.vec3(1.0, 0.0, 0.0))
+    up = wp.where(p[2] >= 0.0, 1.0, -1.0)
+    # q: (radial, axial) offset from the rim's height and radius
+    q = wp.vec2(rho - r, wp.abs(p[2]))
+    s = wp.sqrt(wp.max(barrel * barrel - hh * hh, 0.0))
+    from_centre = wp.vec2(q[0] + s, q[1])
+    reach = wp.length(from_centre)
+    # the circle's nearest point if it lies on the arc, else the rim (the arc's end nearer every such point)
+    to_arc = wp.length(q - wp.vec2(0.0, hh))
+    on_arc = False
+    u = wp.vec2(1.0, 0.0)
+    if reach > 1.0e-12:
+        u = from_centre / reach
+        on_arc = u[0] >= 0.0 and barrel * u[1] <= hh
+    if on_arc:
+        # |q - centre| - barrel, from the squares' difference
+        to_arc = wp.abs((q[0] * q[0] + 2.0 * q[0] * s + q[1] * q[1] - hh * hh) / (reach + barrel))
+    to_end = wp.length(wp.vec2(wp.max(q[0], 0.0), q[1] - hh))
+    inside = q[1] <= hh and q[0] <= barrel_bulge(q[1], hh, barrel)
+    sign = wp.where(inside, -1.0, 1.0)
+    # outward: the arc's radial direction, or from the nearest point of the end (or the rim) to q, signed
+    out = wp.vec2(0.0, 1.0)
+    if to_end >= to_arc and on_arc:
+        out = u
+    elif to_end >= to_arc and to_arc > 1.0e-9:
+        out = (q - wp.vec2(0.0, hh)) * (sign / to_arc)
+    elif to_end < to_arc and to_end > 1.0e-9:
+        out = wp.vec2(wp.max(q[0], 0.0), q[1] - hh) * (sign / to_end)
+    n = out[0] * side + wp.vec3(0.0, 0.0, out[1] * up)
+    return wp.vec4(n[0], n[1], n[2], sign * wp.min(to_end, to_arc))
+
+
+@wp.func
 def cone_distance(scale: wp.vec3, p: wp.vec3):
     """Signed distance [m] (xyz: outward normal, w: distance) of local ``p`` to a cone along z (base radius
     ``scale[0]`` at ``-scale[1]``, apex at ``scale[1]``).
@@ -558,18 +677,18 @@ def ellipsoid_distance(scale: wp.vec3, p: wp.vec3):
 
 @wp.func
 def surface_distance(shape_type: int, scale: wp.vec3, source: wp.uint64, solid: int, p: wp.vec3, reach: float):
-    """:func:`shape_distance` for straight cylinders, cones, ellipsoids and triangle meshes too (``source`` the
-    mesh, looked for within ``reach`` [m]). A watertight mesh (``solid``) is signed by its angle-weighted
-    normals; an open one has no inside, and its normal points to ``p``'s side. Barrel cylinders and meshes
-    farther than ``reach`` read as far away (1e10 m); heightfields need their grid
+    """:func:`shape_distance` for cylinders (straight and barrel-sided), cones, ellipsoids and triangle meshes too
+    (``source`` the mesh, looked for within ``reach`` [m]). A watertight mesh (``solid``) is signed by its
+    angle-weighted normals; an open one has no inside, and its normal points to ``p``'s side. Meshes farther than
+    ``reach`` read as far away (1e10 m); heightfields need their grid
     (:func:`~.heightfields.heightfield_distance`)."""
     if shape_type == GeoType.CONE:
         return cone_distance(scale, p)
     if shape_type == GeoType.ELLIPSOID:
         return ellipsoid_distance(scale, p)
     if shape_type == GeoType.CYLINDER:
-        if scale[2] != 0.0:
-            return wp.vec4(0.0, 0.0, 1.0, 1.0e10)
+        if scale[2] > 0.0:
+            return barrel_distance(scale, p)
         return cylinder_distance(scale, p)
     if shape_type == GeoType.MESH or shape_type == GeoType.CONVEX_MESH:
         smallest = wp.min(wp.min(wp.abs(scale[0]), wp.abs(scale[1])), wp.abs(scale[2]))
@@ -726,7 +845,11 @@ def local_bounds(shape_type: int, scale: np.ndarray, source) -> np.ndarray:
     elif shape_type == GeoType.CAPSULE:
         half = np.array([scale[0], scale[0], scale[1] + scale[0]])
     elif shape_type in (GeoType.CYLINDER, GeoType.CONE):
-        half = np.array([scale[0], scale[0], scale[1]])
+        bulge = 0.0
+        if shape_type == GeoType.CYLINDER and scale[2] > 0.0:
+            # a barrel's side stands out most at mid-height (barrel_bulge at z = 0)
+            bulge = scale[1] ** 2 / (scale[2] + np.sqrt(max(scale[2] ** 2 - scale[1] ** 2, 0.0)))
+        half = np.array([scale[0] + bulge, scale[0] + bulge, scale[1]])
     elif shape_type == GeoType.HFIELD:
         # solid below its surface to any depth (a kilometre here)
         top = max(source.min_z * scale[2], source.max_z * scale[2])
@@ -829,8 +952,6 @@ class ContinuousCollision:
             (still_shapes(model) | dynamic)
             & ((flags & int(ShapeFlags.COLLIDE_PARTICLES)) != 0)
             & np.isin(shape_type, [int(t) for t in GUARDED_TYPES])
-            # a barrel-sided cylinder is not the straight one intersected here
-            & ~((shape_type == int(GeoType.CYLINDER)) & (scale[:, 2] != 0.0))
         )
         index = np.flatnonzero(guarded)
         if not len(index):

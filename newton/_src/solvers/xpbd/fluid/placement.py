@@ -174,8 +174,7 @@ def list_shape_walls(
     ``any_listed[0]`` is set.
     What a step lists from upstream's contacts (:func:`~.walls.list_wall_contact`), found here from
     the shapes themselves (:func:`~.continuous_collision.guarded_surface_distance`: every shape that
-    collides with particles but barrel-sided cylinders), since the contacts of the step were found at the
-    packed positions.
+    collides with particles), since the contacts of the step were found at the packed positions.
     """
     i = wp.tid()
     pi = slots.particle[i]
@@ -387,7 +386,7 @@ def refresh_relaxed_contacts(
     the one its contact names would be pushed back through the box. Each such contact becomes the
     plane at the shape's surface point nearest to where the particle is now
     (:func:`~.continuous_collision.guarded_surface_distance` of ``shapes``, the placement's guard, while
-    ``measured``); for a shape it does not measure (a barrel-sided cylinder, or any without a guard) the
+    ``measured``); without a guard the
     plane is put a metre behind the particle, out of reach for the step (the next collision finds it
     again).
     """
