@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/archive/performance_notebook.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|collision|box-runs|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|collision|box-runs|waves|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
 set -u
 out=${1:?output folder}; shift
 export PYTHONUNBUFFERED=1
@@ -170,6 +170,19 @@ for what in "$@"; do
       # the standing wave (about 100k) and Torricelli's jet (about 150k) over substeps x iterations and modes
       python3 -W ignore -m benchmarks accuracy_chart --size large --device cuda:0 --json "$out/accuracy_chart_${gpu}.json" \
         --plot "$out/accuracy_chart_${gpu}.png" 2>&1 | grep -v '^Module' ;;
+    waves)
+      # the standing wave at the smoothing length and damping that keep it, against the defaults, and what the
+      # same keywords do to the 100k dam break and the 100k pool (docs/validation.rst, "Standing wave")
+      for v in "" "--smoothing-ratio 2.1 --nonaffine-damping 0"; do
+        tag=${v:+_waves}; echo "== ${v:-defaults}"
+        python3 -m benchmarks dam_break --trials 3 $v --json "$out/dam_break_100k${tag}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+        python3 -m benchmarks rest_column --device cuda:0 --n 50 --layers 40 $v \
+          --json "$out/rest_column_50x50x40${tag}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+        python3 -m benchmarks sloshing --device cuda:0 --depth-particles 8 --control --periods 6 $v \
+          --json "$out/sloshing_n20${tag}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+        python3 -m benchmarks sloshing --device cuda:0 --per-length 160 --depth-particles 8 $v \
+          --json "$out/sloshing_n160${tag}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+      done ;;
     jet)
       # Torricelli's jet without the non-affine damping at 32 and 64 substeps, and at eight times the particles
       # (docs/validation.rst, "Exact answers")
