@@ -319,39 +319,38 @@ def distances_of_points(shape_type: int, scale: wp.vec3, points: wp.array[wp.vec
     out[i] = surface_distance(shape_type, scale, wp.uint64(0), 0, points[i], 1.0)
 
 
+def surface_distances(shape_type, scale, points, device):
+    """:func:`surface_distance` of each of ``points`` (a warp array) to a shape at the origin (numpy, float64)."""
+    out = wp.zeros(len(points), dtype=wp.vec4, device=device)
+    wp.launch(
+        distances_of_points, dim=len(points), inputs=[int(shape_type), wp.vec3(*scale), points, out], device=device
+    )
+    return out.numpy().astype(np.float64)
+
+
+def assert_signed_distances(depth, p, e, atol):
+    """``e`` (xyz: normal, w: distance) is the signed distance that ``depth`` (inside positive) measures, with unit
+    normals that point from each point's nearest surface point to it."""
+    np.testing.assert_allclose(e[:, 3], -depth(p), atol=atol)
+    np.testing.assert_allclose(np.linalg.norm(e[:, :3], axis=1), 1.0, atol=1.0e-4)
+    away = np.abs(e[:, 3]) > 1.0e-3
+    foot = p[away] - e[away, 3:4] * e[away, :3]
+    np.testing.assert_allclose(depth(foot), 0.0, atol=max(atol, 1.0e-4))
+
+
 def test_cone_and_ellipsoid_distances(test, device):
     """The placement's measure of a cone is its exact signed distance; an ellipsoid's has the true sign."""
     rng = np.random.default_rng(5)
     p = rng.uniform(-1.2, 1.2, (2000, 3))
-    out = wp.zeros(len(p), dtype=wp.vec4, device=device)
     points = wp.array(p, dtype=wp.vec3, device=device)
     cone = (0.8, 0.6, 0.0)
-    wp.launch(
-        distances_of_points, dim=len(p), inputs=[int(newton.GeoType.CONE), wp.vec3(*cone), points, out], device=device
-    )
-    e = out.numpy().astype(np.float64)
-    np.testing.assert_allclose(e[:, 3], -cone_depth(cone, p), atol=1.0e-5)
-    np.testing.assert_allclose(np.linalg.norm(e[:, :3], axis=1), 1.0, atol=1.0e-4)
-    # the nearest surface point is where the normal says
-    outside = e[:, 3] > 1.0e-3
-    foot = p[outside] - e[outside, 3:4] * e[outside, :3]
-    np.testing.assert_allclose(cone_depth(cone, foot), 0.0, atol=1.0e-4)
+    e = surface_distances(newton.GeoType.CONE, cone, points, device)
+    assert_signed_distances(lambda q: cone_depth(cone, q), p, e, 1.0e-5)
     axes = np.array([0.8, 0.4, 0.6])
-    wp.launch(
-        distances_of_points,
-        dim=len(p),
-        inputs=[int(newton.GeoType.ELLIPSOID), wp.vec3(*axes), points, out],
-        device=device,
-    )
-    e = out.numpy().astype(np.float64)
+    e = surface_distances(newton.GeoType.ELLIPSOID, axes, points, device)
     np.testing.assert_array_equal(e[:, 3] < 0.0, inside(newton.GeoType.ELLIPSOID, axes, p))
-    wp.launch(
-        distances_of_points,
-        dim=len(p),
-        inputs=[int(newton.GeoType.ELLIPSOID), wp.vec3(0.7), points, out],
-        device=device,
-    )
-    np.testing.assert_allclose(out.numpy()[:, 3], np.linalg.norm(p, axis=1) - 0.7, atol=1.0e-5)
+    e = surface_distances(newton.GeoType.ELLIPSOID, (0.7, 0.7, 0.7), points, device)
+    np.testing.assert_allclose(e[:, 3], np.linalg.norm(p, axis=1) - 0.7, atol=1.0e-5)
 
 
 def barrel_depth(scale, p):
@@ -375,37 +374,14 @@ def test_barrel_cylinder_distance(test, device):
     limit of a flat arc."""
     rng = np.random.default_rng(9)
     p = rng.uniform(-1.2, 1.2, (1500, 3))
-    out = wp.zeros(len(p), dtype=wp.vec4, device=device)
     points = wp.array(p, dtype=wp.vec3, device=device)
     for barrel in ((0.5, 0.7, 0.7), (0.5, 0.7, 1.0), (0.3, 0.4, 3.0)):
-        wp.launch(
-            distances_of_points,
-            dim=len(p),
-            inputs=[int(newton.GeoType.CYLINDER), wp.vec3(*barrel), points, out],
-            device=device,
-        )
-        e = out.numpy().astype(np.float64)
+        e = surface_distances(newton.GeoType.CYLINDER, barrel, points, device)
         # (within the reference's sampling of the arc)
-        np.testing.assert_allclose(e[:, 3], -barrel_depth(barrel, p), atol=2.0e-4, err_msg=str(barrel))
-        np.testing.assert_allclose(np.linalg.norm(e[:, :3], axis=1), 1.0, atol=1.0e-4)
-        # the nearest surface point is where the normal says
-        away = np.abs(e[:, 3]) > 1.0e-3
-        foot = p[away] - e[away, 3:4] * e[away, :3]
-        np.testing.assert_allclose(barrel_depth(barrel, foot), 0.0, atol=2.0e-4, err_msg=str(barrel))
-    straight = wp.zeros_like(out)
-    wp.launch(
-        distances_of_points,
-        dim=len(p),
-        inputs=[int(newton.GeoType.CYLINDER), wp.vec3(0.5, 0.7, 1.0e4), points, out],
-        device=device,
-    )
-    wp.launch(
-        distances_of_points,
-        dim=len(p),
-        inputs=[int(newton.GeoType.CYLINDER), wp.vec3(0.5, 0.7, 0.0), points, straight],
-        device=device,
-    )
-    np.testing.assert_allclose(out.numpy()[:, 3], straight.numpy()[:, 3], atol=1.0e-4)
+        assert_signed_distances(lambda q, b=barrel: barrel_depth(b, q), p, e, 2.0e-4)
+    flat = surface_distances(newton.GeoType.CYLINDER, (0.5, 0.7, 1.0e4), points, device)
+    straight = surface_distances(newton.GeoType.CYLINDER, (0.5, 0.7, 0.0), points, device)
+    np.testing.assert_allclose(flat[:, 3], straight[:, 3], atol=1.0e-4)
 
 
 def thrown_onto(device, kind, substeps, **kwargs):
