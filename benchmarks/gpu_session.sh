@@ -104,7 +104,17 @@ for what in "$@"; do
         python3 -m benchmarks dam_break --terrain-bump 0.5 $v --trials 3 \
           --json "$out/dam_break_100k_terrain${tag}_${gpu}.json" 2>&1 | grep -A2 "^device"
       done
-      python3 -m pytest -q -k cuda newton/tests/test_fluid_continuous_collision.py 2>&1 | tail -5 ;;
+      # a change to the guard taken off and put back between runs: COLLISION_PATCH names its patch
+      # (the barrel-sided cylinders: git diff 4328822 41e52ea -- newton/_src > barrel.patch)
+      if [ -n "${COLLISION_PATCH:-}" ]; then
+        for v in after before after2; do
+          [ $v = before ] && git apply -R "$COLLISION_PATCH"
+          [ $v = after2 ] && git apply "$COLLISION_PATCH"
+          python3 -m benchmarks dam_break --trials 3 --json "$out/dam_break_100k_change_${v}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+        done
+      fi
+      python3 -m pytest -q -k cuda newton/tests/test_fluid_continuous_collision.py newton/tests/test_fluid_placement.py \
+        newton/tests/test_fluid_diffuse.py 2>&1 | tail -5 ;;
     box-runs)
       # the floating box of test_floating_box_comes_to_rest repeated at two non-affine dampings (its outcome on a GPU
       # changes from run to run; docs/validation.rst "Floating box"), and the 100k pool and dam break at each
