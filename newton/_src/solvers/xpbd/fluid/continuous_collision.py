@@ -18,11 +18,11 @@ what still points into the wall. A path pushed off one shape is followed again, 
 thrown into a corner stops at every wall; one still entering a shape after ``GUARD_ROUNDS`` rounds
 stops just before its first entry.
 
-Boxes, spheres, capsules, cylinders, cones, ellipsoids and planes are intersected exactly; triangle
+Boxes, spheres, capsules, straight cylinders, cones, ellipsoids and planes are intersected exactly; triangle
 meshes (and convex hulls) by a ray cast against their BVH; heightfields triangle by triangle along the
 cells the path crosses (:mod:`.heightfields`); barrel-sided cylinders (convex) by Newton's method on
-the path's distance outside their side. Shapes of dynamic bodies are left to them too: they take the fluid's reaction, which a hard stop would
-not give them.
+the path's distance outside their side. Shapes of dynamic bodies are left to upstream's contacts: they
+take the fluid's reaction, which a hard stop would not give them.
 """
 
 from __future__ import annotations
@@ -161,12 +161,16 @@ def _convex_entry(t_in: float, t_out: float, n: wp.vec3):
 
 
 @wp.func
+def _slab_interval(a: wp.vec3, d: wp.vec3, half_height: float):
+    """Parameters where ``a + t d`` enters and leaves the slab ``|z| <= half_height``, and the entry face's normal."""
+    return _box_interval(a, d, wp.vec3(-1.0e30, -1.0e30, -half_height), wp.vec3(1.0e30, 1.0e30, half_height))
+
+
+@wp.func
 def _capped_entry(a: wp.vec3, d: wp.vec3, t_in: float, t_out: float, n: wp.vec3, half_height: float):
     """The entry of ``a + t d`` into a solid of the z axis it overlaps for ``t`` in [t_in, t_out] (entry normal
     ``n``), cut by the slab ``|z| <= half_height``."""
-    s_in, s_out, s_n = _box_interval(
-        a, d, wp.vec3(-1.0e30, -1.0e30, -half_height), wp.vec3(1.0e30, 1.0e30, half_height)
-    )
+    s_in, s_out, s_n = _slab_interval(a, d, half_height)
     if s_in > t_in:
         return _convex_entry(s_in, wp.min(t_out, s_out), s_n)
     return _convex_entry(t_in, wp.min(t_out, s_out), n)
@@ -214,9 +218,7 @@ def _barrel_entry(a: wp.vec3, d: wp.vec3, radius: float, half_height: float, bar
     ``|z| <= half_height`` approach the first root from below, never past it, and a rate that no longer falls
     means the path misses.
     """
-    s_in, s_out, s_n = _box_interval(
-        a, d, wp.vec3(-1.0e30, -1.0e30, -half_height), wp.vec3(1.0e30, 1.0e30, half_height)
-    )
+    s_in, s_out, s_n = _slab_interval(a, d, half_height)
     lo = wp.max(s_in, 0.0)
     hi = wp.min(s_out, 1.0)
     if lo > hi:

@@ -760,13 +760,8 @@ class FluidSolver:
             return
         self.placement_pending = False
         self._join()
-        shapes = self._hold_placement_guard(state.body_q, state.body_qd)
-        if self.device.is_capturing or self.device.is_cpu:
-            # (conditional bodies may not allocate: their neighbour builds sort with the allocation-free sum)
-            wp.capture_if(self.any_placed, self._check_placement, state=state, shapes=shapes, rounds=RELAXATION_ROUNDS)
-            wp.capture_while(self.any_relaxing, self._relaxation_round, state=state, shapes=shapes)
-            wp.capture_if(self.any_placed, self._finish_placement, state=state)
-        elif self.eager_relaxation is not None:
+        if self.eager_relaxation is not None and not self.device.is_capturing:
+            # (the captured graph holds the shapes where its copies of the body poses have them)
             copies, graph = self.eager_relaxation
             wp.copy(copies.particle_q, state.particle_q)
             if copies.body_q is not None and state.body_q is not None:
@@ -775,12 +770,25 @@ class FluidSolver:
             wp.capture_launch(graph)
             wp.copy(state.particle_q, copies.particle_q)
             self._finish_placement(state)
+        elif self.device.is_capturing or self.device.is_cpu:
+            self._relaxation_nodes(state)
+            wp.capture_if(self.any_placed, self._finish_placement, state=state)
         else:
+            shapes = self._hold_placement_guard(state.body_q, state.body_qd)
             self._check_placement(state, shapes, EAGER_RELAXATION_ROUNDS)
             for _ in range(EAGER_RELAXATION_ROUNDS):
                 self._relaxation_round(state, shapes)
             self._finish_placement(state)
         self.slot_content = SlotContent.STALE
+
+    def _relaxation_nodes(self, state) -> None:
+        """The check (if a world was placed) and the conditional loop of rounds, as conditional nodes on ``state``.
+
+        Conditional bodies may not allocate: their neighbour builds sort with the allocation-free sum.
+        """
+        shapes = self._hold_placement_guard(state.body_q, state.body_qd)
+        wp.capture_if(self.any_placed, self._check_placement, state=state, shapes=shapes, rounds=RELAXATION_ROUNDS)
+        wp.capture_while(self.any_relaxing, self._relaxation_round, state=state, shapes=shapes)
 
     def _check_placement(self, state, shapes: GuardedShapes, rounds: int) -> None:
         """Check the placed worlds and run the first round of the relaxation on the check's neighbour build."""
@@ -852,9 +860,7 @@ class FluidSolver:
             wp.load_module(f"{__package__}.{name}", device=d)
         self._join()
         with wp.ScopedCapture(device=d, force_module_load=False) as capture:
-            shapes = self._hold_placement_guard(copies.body_q, copies.body_qd)
-            wp.capture_if(self.any_placed, self._check_placement, state=copies, shapes=shapes, rounds=RELAXATION_ROUNDS)
-            wp.capture_while(self.any_relaxing, self._relaxation_round, state=copies, shapes=shapes)
+            self._relaxation_nodes(copies)
         self.slot_content = SlotContent.STALE
         self.eager_relaxation = (copies, capture.graph)
 
