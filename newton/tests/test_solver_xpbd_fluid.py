@@ -639,7 +639,9 @@ def test_coincident_particles_separate_deterministically(test, device):
     np.testing.assert_allclose(q.mean(axis=0), (0.0, 0.0, 1.0), atol=1.0e-6)  # symmetric push, no drift
 
 
-def pool_with_box(device, box_density, spacing=D, half=0.5, depth=0.5, box_half=(0.15, 0.15, 0.1), box_z=0.75):
+def pool_with_box(
+    device, box_density, spacing=D, half=0.5, depth=0.5, box_half=(0.15, 0.15, 0.1), box_z=0.75, box_x=0.0
+):
     """Water ``depth`` [m] deep at ``spacing`` in a frictionless square pool of half-width ``half``, and a box above."""
     builder = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))
     # as many columns as fit between the walls (benchmarks/floating_box.py: rounding up starts some inside them)
@@ -648,7 +650,7 @@ def pool_with_box(device, box_density, spacing=D, half=0.5, depth=0.5, box_half=
     add_block(builder, (n, n, int(round(depth / d))), origin, spacing=d, mass=1000.0 * d**3, radius=0.5 * d)
     builder.add_ground_plane(cfg=newton.ModelBuilder.ShapeConfig(mu=0.0))
     add_tank(builder, half, half, 1.0, 0.05)
-    body = builder.add_body(xform=wp.transform(wp.vec3(0.0, 0.0, box_z), wp.quat_identity()))
+    body = builder.add_body(xform=wp.transform(wp.vec3(box_x, 0.0, box_z), wp.quat_identity()))
     box_cfg = newton.ModelBuilder.ShapeConfig(mu=0.0, density=box_density)
     builder.add_shape_box(body, hx=box_half[0], hy=box_half[1], hz=box_half[2], cfg=box_cfg)
     model = builder.finalize(device=device)
