@@ -120,6 +120,9 @@ for what in "$@"; do
       # changes from run to run; docs/validation.rst "Floating box"), and the 100k pool and dam break at each
       python3 docs/validation/floating_box/repeat_runs.py --device cuda:0 --runs 6 --damping 0.05 0.1 \
         --json "$out/floating_box_repeat_${gpu}.json" 2>&1 | grep '^damping'
+      # and at the default, twelve starts 1 um apart (the CPU's 30 starts: repeat_runs.py --device cpu --runs 30 --offset 1e-6)
+      python3 docs/validation/floating_box/repeat_runs.py --device cuda:0 --runs 12 --offset 1e-6 \
+        --json "$out/floating_box_offsets_${gpu}.json" 2>&1 | grep '^damping'
       for v in 0.05 0.1; do
         python3 -m benchmarks rest_column --device cuda:0 --n 50 --layers 40 --nonaffine-damping $v \
           --json "$out/rest_column_50x50x40_damping_${v}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
