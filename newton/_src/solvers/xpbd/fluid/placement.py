@@ -200,6 +200,8 @@ def list_shape_walls(
             continue
         normal = wp.transform_vector(pose, wp.vec3(hit[0], hit[1], hit[2]))
         slots.wall_plane[count * n + i] = wp.vec4(normal[0], normal[1], normal[2], wp.dot(normal, x) - hit[3])
+        slots.wall_edge[count * n + i] = wp.vec4(0.0)
+        slots.wall_corner[count * n + i] = wp.vec4(0.0)
         count += 1
     slots.wall_count[i] = count
 

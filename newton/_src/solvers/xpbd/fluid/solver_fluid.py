@@ -20,7 +20,14 @@ import numpy as np
 import warp as wp
 
 from ....geometry import ParticleFlags
-from .calibration import WALL_TABLE_SIZE, lattice_density, rest_lattice, stable_relaxation, wall_density_tables
+from .calibration import (
+    WALL_TABLE_SIZE,
+    lattice_density,
+    rest_lattice,
+    stable_relaxation,
+    wall_density_tables,
+    wall_edge_tables,
+)
 from .config import (
     AFFINE_REGULARIZER,
     AKINCI_ZERO,
@@ -187,9 +194,13 @@ class FluidSolver:
             self.subiterations_total = wp.zeros(1, dtype=wp.int32)
             # gradient of the static walls' share of rho / rho0 per slot, from the density pass to the correction
             self.wall_grad = wp.zeros(n, dtype=wp.vec3)
+            # the plane's tables, then a box's edges' and corners' (walls.box_density)
             wall_rho, wall_drho = wall_density_tables(d, h, self.mean_mass)
-            self.wall_table = wp.array(wall_rho / self.lattice_density, dtype=float)
-            self.wall_table_grad = wp.array(wall_drho / self.lattice_density, dtype=float)
+            edge_rho, *edge_grads = wall_edge_tables(d, h, self.mean_mass)
+            self.wall_table = wp.array(np.concatenate([wall_rho, edge_rho]) / self.lattice_density, dtype=float)
+            self.wall_table_grad = wp.array(
+                np.concatenate([wall_drho, *edge_grads]) / self.lattice_density, dtype=float
+            )
             self.last_finite_q = wp.array(model.particle_q.numpy()[fluid_particle], dtype=wp.vec3)
             #: device counters of what happened between two diagnostics calls, and the warnings that report it
             self.reports = FluidReports(model.particle_count)
@@ -204,6 +215,8 @@ class FluidSolver:
             setattr(other, field, getattr(self.search.slots, field))
         other.wall_count = self.search.wall_count
         other.wall_plane = self.search.wall_plane
+        other.wall_edge = self.search.wall_edge
+        other.wall_corner = self.search.wall_corner
         other.xm = self.xm_applied
         #: the slot views of the two position buffers; ``current`` is the one holding the positions
         self._slot_views = (self.search.slots, other)
@@ -385,6 +398,10 @@ class FluidSolver:
             walls.shape_body = m.shape_body
             walls.body_q = body_q if body_q is not None and m.body_count else self._no_bodies
             walls.body_flags = m.body_flags if m.body_count else self._no_body_flags
+            walls.shape_type = m.shape_type
+            walls.shape_scale = m.shape_scale
+            walls.shape_transform = m.shape_transform
+            walls.reach = self.config.fluid_smoothing_length
         s = self.search
         # (the travel limit writes the positions upstream goes on with: not beside it)
         s.compute_keys(particle_q, m.particle_flags, m.particle_world, self.params, particle_q_start, particle_qd)
