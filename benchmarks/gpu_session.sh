@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/archive/performance_notebook.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|collision|box-runs|waves|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|box-runs|waves|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
 set -u
 out=${1:?output folder}; shift
 export PYTHONUNBUFFERED=1
@@ -92,6 +92,20 @@ for what in "$@"; do
       done
       python3 -m pytest -q -k cuda newton/tests/test_fluid_placement.py newton/tests/test_fluid_reset.py \
         newton/tests/test_fluid_stress.py newton/tests/test_solver_xpbd_fluid.py 2>&1 | tail -5 ;;
+    walls)
+      # the walls' density by a box's edges and corners and in a tank's corner (docs/validation.rst "Where the method
+      # fails"), the CUDA tests of the walls, and the 100k dam break with the change taken off and put back
+      # (WALLS_PATCH: git diff 3e34338 401fcfa -- newton/_src > walls.patch)
+      python3 docs/validation/walls/edge_density.py --device cuda:0 --json "$out/edge_density_${gpu}.json" 2>&1 | grep particles
+      python3 -m pytest -q -k "cuda and (wall or edge or rest_lattice or archimedes or floats)" \
+        newton/tests/test_solver_xpbd_fluid.py 2>&1 | tail -2
+      if [ -n "${WALLS_PATCH:-}" ]; then
+        for v in after before after2; do
+          [ $v = before ] && git apply -R "$WALLS_PATCH"
+          [ $v = after2 ] && git apply "$WALLS_PATCH"
+          python3 -m benchmarks dam_break --trials 3 --json "$out/dam_break_100k_walls_${v}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+        done
+      fi ;;
     collision)
       # the cost of continuous collision at the 100k dam break (docs/archive/performance_notebook.md "Continuous collision")
       for v in "" "--no-continuous-collision"; do
