@@ -994,7 +994,7 @@ def evaluate_wall_share(
 
 def test_wall_density_does_not_depend_on_contact_order(test, device):
     # contacts are found in any order on a GPU; a particle by three or more walls must get the same
-    # (bitwise) ghost density whatever the order its planes (and their edges) were listed in
+    # (bitwise) ghost density whatever the order its planes were listed in
     fluid = Sim(make_model(device, lambda b: add_block(b, (2, 2, 2)))).solver._fluid
     rng = np.random.default_rng(3)
     n = 64
@@ -1003,17 +1003,10 @@ def test_wall_density_does_not_depend_on_contact_order(test, device):
     planes = np.array(
         [[0.0, 0.0, 1.0, 0.0], [1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.01], [*diagonal, 0.3 * D]], dtype=np.float32
     )
-    # the third plane as a box face by an edge (its second face's plane: outward -x, 0.5 d behind x = 0),
-    # the fourth by a corner (and a third face: outward -z, 0.4 d behind z = 0)
-    edges = np.zeros_like(planes)
-    edges[2] = [-1.0, 0.0, 0.0, -0.5 * D]
-    corners = np.zeros_like(planes)
-    edges[3] = [-1.0, 0.0, 0.0, -0.5 * D]
-    corners[3] = [0.0, 0.0, -1.0, -0.4 * D]
     test.assertEqual(WALL_CONTACTS_PER_SLOT, len(planes))
 
-    def shares(lists, edge_lists=None, corner_lists=None):
-        # lists[i]: the planes listed for slot i, in listing order (edge_lists[i], corner_lists[i]: their faces)
+    def shares(lists):
+        # lists[i]: the planes listed for slot i, in listing order
         slots = FluidSlots()
         slots.particle = wp.array(np.arange(n, dtype=np.int32), dtype=wp.int32, device=device)
         slots.xm = wp.array(np.hstack([x, np.full((n, 1), MASS)]).astype(np.float32), dtype=wp.vec4, device=device)
@@ -1023,17 +1016,12 @@ def test_wall_density_does_not_depend_on_contact_order(test, device):
         slots.lanes = 1
         slots.lane_capacity = 1
         plane = np.zeros((WALL_CONTACTS_PER_SLOT, n, 4), dtype=np.float32)
-        edge = np.zeros((WALL_CONTACTS_PER_SLOT, n, 4), dtype=np.float32)
-        corner = np.zeros((WALL_CONTACTS_PER_SLOT, n, 4), dtype=np.float32)
         for i, listed in enumerate(lists):
             plane[: len(listed), i] = listed
-            if edge_lists is not None:
-                edge[: len(listed), i] = edge_lists[i]
-                corner[: len(listed), i] = corner_lists[i]
         slots.wall_count = wp.array([len(listed) for listed in lists], dtype=wp.int32, device=device)
         slots.wall_plane = wp.array(plane.reshape(-1, 4), dtype=wp.vec4, device=device)
-        slots.wall_edge = wp.array(edge.reshape(-1, 4), dtype=wp.vec4, device=device)
-        slots.wall_corner = wp.array(corner.reshape(-1, 4), dtype=wp.vec4, device=device)
+        slots.wall_shape = wp.zeros(WALL_CONTACTS_PER_SLOT * n, dtype=wp.int32, device=device)
+        slots.wall_factor = wp.ones(n, dtype=float, device=device)
         out = wp.zeros(n, dtype=wp.vec4, device=device)
         wp.launch(
             evaluate_wall_share,
@@ -1044,30 +1032,18 @@ def test_wall_density_does_not_depend_on_contact_order(test, device):
         )
         return out.numpy()
 
-    reference = shares([planes] * n, [edges] * n, [corners] * n)
+    reference = shares([planes] * n)
+    single = [shares([planes[k : k + 1]] * n) for k in range(len(planes))]
+    # the share is the walls' shares added up (and not nothing: the particles are within h of the walls)
+    np.testing.assert_allclose(reference, sum(single), rtol=1.0e-5, atol=1.0e-7)
     test.assertGreater(reference[:, 3].min(), 0.0)
     for _ in range(12):
-        order = [rng.permutation(len(planes)) for _ in range(n)]
-        shuffled = shares([planes[k] for k in order], [edges[k] for k in order], [corners[k] for k in order])
-        np.testing.assert_array_equal(shuffled, reference)
-    # planes that do not meet square add up; a plane listed twice (two shapes, one surface) counts twice
-    single = [shares([planes[k : k + 1]] * n) for k in range(len(planes))]
-    np.testing.assert_allclose(shares([planes[[0, 3]]] * n), single[0] + single[3], rtol=1.0e-5, atol=1.0e-7)
-    twice = shares([planes[[0, 3, 0]]] * n)
-    np.testing.assert_array_equal(shares([planes[[0, 0, 3]]] * n), twice)
-    np.testing.assert_allclose(twice, 2.0 * single[0] + single[3], rtol=1.0e-5, atol=1.0e-7)
-    # two that meet square (a concave corner) lend the quadrant behind both once: less than their sum,
-    # whatever their order
-    square = shares([planes[[0, 1]]] * n)
-    np.testing.assert_array_equal(shares([planes[[1, 0]]] * n), square)
-    test.assertTrue((square[:, 3] < single[0][:, 3] + single[1][:, 3]).all())
-    # a face by an edge lends the wedge behind it and the edge's second face: less than the plane alone;
-    # by a corner, less again
-    edge_share = shares([planes[2:3]] * n, [edges[2:3]] * n, [corners[2:3]] * n)
-    test.assertTrue((edge_share[:, 3] < single[2][:, 3]).all())
-    corner_share = shares([planes[2:3]] * n, [edges[2:3]] * n, [corners[3:4]] * n)
-    test.assertTrue((corner_share[:, 3] <= edge_share[:, 3]).all())
-    test.assertTrue((corner_share[:, 3] < edge_share[:, 3]).any())
+        lists = [planes[rng.permutation(len(planes))] for _ in range(n)]
+        np.testing.assert_array_equal(shares(lists), reference)
+    # a plane listed twice (two shapes, one surface) counts twice, in either place
+    twice = shares([planes[[0, 1, 0]]] * n)
+    np.testing.assert_array_equal(shares([planes[[0, 0, 1]]] * n), twice)
+    np.testing.assert_allclose(twice, 2.0 * single[0] + single[1], rtol=1.0e-5, atol=1.0e-7)
 
 
 def test_wall_edge_tables_continue_the_plane_table(test, device):

@@ -87,7 +87,7 @@ from .velocity_passes import (
     gather_fluid_state,
     recover_nonfinite_fluid,
 )
-from .walls import FluidWallContacts
+from .walls import FluidWallContacts, scale_wall_shares
 
 
 class FluidSolver:
@@ -215,8 +215,8 @@ class FluidSolver:
             setattr(other, field, getattr(self.search.slots, field))
         other.wall_count = self.search.wall_count
         other.wall_plane = self.search.wall_plane
-        other.wall_edge = self.search.wall_edge
-        other.wall_corner = self.search.wall_corner
+        other.wall_shape = self.search.wall_shape
+        other.wall_factor = self.search.wall_factor
         other.xm = self.xm_applied
         #: the slot views of the two position buffers; ``current`` is the one holding the positions
         self._slot_views = (self.search.slots, other)
@@ -401,13 +401,20 @@ class FluidSolver:
             walls.shape_type = m.shape_type
             walls.shape_scale = m.shape_scale
             walls.shape_transform = m.shape_transform
-            walls.reach = self.config.fluid_smoothing_length
         s = self.search
         # (the travel limit writes the positions upstream goes on with: not beside it)
         s.compute_keys(particle_q, m.particle_flags, m.particle_world, self.params, particle_q_start, particle_qd)
         with self.beside() if particle_q_start is not None else contextlib.nullcontext():
             s.sort(particle_q, m.particle_mass, m.particle_world, allocation_free=allocation_free)
             s.scan(walls)
+            if walls is not None:
+                # the solid's share behind each slot's walls, from where the build listed them
+                wp.launch(
+                    scale_wall_shares,
+                    dim=self.fluid_count,
+                    inputs=[self.params, s.slots, walls, self.wall_table, self.wall_table_grad],
+                    device=self.device,
+                )
         # the build gathered these positions into slot order: the first iteration uses them as they are
         self.slot_content = SlotContent.BUILT
         self.iteration = 0

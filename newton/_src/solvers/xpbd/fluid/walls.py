@@ -7,11 +7,15 @@ A fluid particle by a wall misses the neighbours the wall stands in for; each st
 shape the particle touches is listed for its slot as a plane (:func:`list_wall_contact`, once per
 step, from upstream's particle-shape contacts) and lends the density of a rest lattice continued
 beyond it (:func:`fluid_wall_share`, from tables made at construction:
-:func:`~.calibration.wall_density_tables`). Within ``h`` of a box's edge or corner the solid is not
-that half-space but what lies behind two or three faces, which lends the density of
-:func:`~.calibration.wall_edge_tables`: the plane's half-space would count water the particle's own
-sum holds already (a rest lattice read 4.6 % over the rest density diagonal to an edge). Where two
-perpendicular planes meet (a tank's wall and its floor), the quadrant behind both is lent once.
+:func:`~.calibration.wall_density_tables`).
+
+The half-spaces are the solid only beside flat faces. By a box's edge or corner the solid is what lies
+behind two or three faces (:func:`~.calibration.wall_edge_tables`): the edge's plane would count water
+the particle's own sum holds already (a rest lattice read 4.6 % over the rest density diagonal to an
+edge). Where two walls meet square (a tank's wall and its floor) both half-spaces hold the quadrant
+behind the two, which is lent once. Once per step, :func:`scale_wall_shares` measures the solid's share
+of each slot at its listed position against the planes' and keeps the ratio, by which the passes scale
+the planes' share: the passes stay as light as the planes alone.
 """
 
 import warp as wp
@@ -24,12 +28,12 @@ from .sph import FluidParams, FluidSlots
 # approximate division and square root in CUDA code (no effect on the CPU; see :mod:`.sph`)
 wp.set_module_options({"fast_math": True})
 
-# |cos| of the angle between two walls' normals below which they meet square (a tank's wall and floor)
-PERPENDICULAR = wp.constant(0.05)
-
 # static-wall contacts whose ghost density a fluid particle can take (more are left out of its density;
 # a particle in the corner of a box tank has three)
 WALL_CONTACTS_PER_SLOT = 4
+
+# |cos| of the angle between two walls' normals below which they meet square (a tank's wall and floor)
+PERPENDICULAR = wp.constant(0.05)
 
 
 @wp.func
@@ -45,93 +49,6 @@ def plane_after(a: wp.vec4, b: wp.vec4):
 
 
 @wp.func
-def wall_after(
-    plane_a: wp.vec4, edge_a: wp.vec4, corner_a: wp.vec4, plane_b: wp.vec4, edge_b: wp.vec4, corner_b: wp.vec4
-):
-    """Whether wall ``a`` comes after ``b``: by plane (:func:`plane_after`), then its edge's face, then its corner's."""
-    # (vectors compare by == only)
-    if not (plane_a == plane_b):
-        return plane_after(plane_a, plane_b)
-    if not (edge_a == edge_b):
-        return plane_after(edge_a, edge_b)
-    return plane_after(corner_a, corner_b)
-
-
-@wp.func
-def box_density(
-    dist: float,
-    depth: float,
-    depth2: float,
-    p: FluidParams,
-    wall_table: wp.array[float],
-    wall_table_grad: wp.array[float],
-):
-    """A box's share of ``rho / rho0`` by an edge or a corner (``w``), and its derivatives (``xyz``).
-
-    ``dist`` outside the first face, ``depth`` and ``depth2`` behind the planes of the second and the
-    third (``h`` for none); the derivatives against the three. Trilinear in
-    :func:`~.calibration.wall_edge_tables`, stored after the plane's table in both arrays (the
-    derivatives against the depths after the one against ``dist``).
-    """
-    u = dist / p.wall_table_step
-    i = wp.min(int(u), WALL_TABLE_SIZE - 2)
-    fu = u - float(i)
-    depth_step = 2.0 * p.h / float(EDGE_TABLE_SIZE - 1)
-    v = (wp.clamp(depth, -p.h, p.h) + p.h) / depth_step
-    j = wp.min(int(v), EDGE_TABLE_SIZE - 2)
-    fv = v - float(j)
-    w = (wp.clamp(depth2, -p.h, p.h) + p.h) / depth_step
-    k = wp.min(int(w), EDGE_TABLE_SIZE - 2)
-    fw = w - float(k)
-    size = WALL_TABLE_SIZE * EDGE_TABLE_SIZE * EDGE_TABLE_SIZE
-    share = wp.vec4(0.0)
-    for corner in range(8):
-        di = corner & 1
-        dj = (corner >> 1) & 1
-        dk = (corner >> 2) & 1
-        weight = wp.where(di == 1, fu, 1.0 - fu) * wp.where(dj == 1, fv, 1.0 - fv) * wp.where(dk == 1, fw, 1.0 - fw)
-        at = WALL_TABLE_SIZE + ((i + di) * EDGE_TABLE_SIZE + j + dj) * EDGE_TABLE_SIZE + k + dk
-        sample = wp.vec4(
-            wall_table_grad[at], wall_table_grad[at + size], wall_table_grad[at + 2 * size], wall_table[at]
-        )
-        share += sample * weight
-    # beyond the table's depths the solid no longer changes with them
-    if depth <= -p.h or depth >= p.h:
-        share[1] = 0.0
-    if depth2 <= -p.h or depth2 >= p.h:
-        share[2] = 0.0
-    return share * p.wall_scale
-
-
-@wp.func
-def next_wall(slots: FluidSlots, i: int, after_last: bool, last: wp.vec4, last_edge: wp.vec4, last_corner: wp.vec4):
-    """The first wall of slot ``i`` in :func:`wall_after`'s order (after the ``last`` one if ``after_last``).
-
-    Returns how often it is listed (0: none left), its plane, its edge's face and its corner's.
-    """
-    n = slots.particle.shape[0]
-    count = wp.min(slots.wall_count[i], WALL_CONTACTS_PER_SLOT)
-    found = int(0)
-    plane = wp.vec4(0.0)
-    edge = wp.vec4(0.0)
-    corner = wp.vec4(0.0)
-    for e in range(count):
-        q = slots.wall_plane[e * n + i]
-        qe = slots.wall_edge[e * n + i]
-        qc = slots.wall_corner[e * n + i]
-        if after_last and not wall_after(q, qe, qc, last, last_edge, last_corner):
-            continue
-        if found == 0 or wall_after(plane, edge, corner, q, qe, qc):
-            plane = q
-            edge = qe
-            corner = qc
-            found = 1
-        elif q == plane and qe == edge and qc == corner:
-            found += 1
-    return found, plane, edge, corner
-
-
-@wp.func
 def plane_density(dist: float, p: FluidParams, wall_table: wp.array[float], wall_table_grad: wp.array[float]):
     """The half-space's share of ``rho / rho0`` (``y``) and its derivative against ``dist`` (``x``)."""
     u = dist / p.wall_table_step
@@ -143,9 +60,41 @@ def plane_density(dist: float, p: FluidParams, wall_table: wp.array[float], wall
 
 
 @wp.func
-def behind(face: wp.vec4, x: wp.vec3):
-    """How deep ``x`` lies behind a face's plane (outward normal, offset) [m]: negative outside it."""
-    return face[3] - (face[0] * x[0] + face[1] * x[1] + face[2] * x[2])
+def planes_share(
+    slots: FluidSlots,
+    i: int,
+    x: wp.vec3,
+    p: FluidParams,
+    wall_table: wp.array[float],
+    wall_table_grad: wp.array[float],
+):
+    """The listed planes' half-spaces' share of slot ``i``'s ``rho / rho0`` (:func:`fluid_wall_share`, unscaled)."""
+    n = slots.particle.shape[0]
+    count = wp.min(slots.wall_count[i], WALL_CONTACTS_PER_SLOT)
+    share = wp.vec4(0.0)
+    last = wp.vec4(0.0)
+    for t in range(count):
+        # the next plane after the last one added, and how often it is listed
+        found = int(0)
+        plane = wp.vec4(0.0)
+        for e in range(count):
+            q = slots.wall_plane[e * n + i]
+            if t > 0 and not plane_after(q, last):
+                continue
+            if found == 0 or plane_after(plane, q):
+                plane = q
+                found = 1
+            elif q == plane:
+                found += 1
+        if found == 0:
+            break
+        last = plane
+        normal = wp.vec3(plane[0], plane[1], plane[2])
+        dist = wp.max(wp.dot(normal, x) - plane[3], 0.0)
+        if dist < p.h:
+            half = plane_density(dist, p, wall_table, wall_table_grad)
+            share += wp.vec4(normal[0] * half[0], normal[1] * half[0], normal[2] * half[0], half[1]) * float(found)
+    return share
 
 
 @wp.func
@@ -164,70 +113,39 @@ def fluid_wall_share(
     particle centre to the wall plane. Without it a particle by a wall misses neighbours and packs
     closer than the rest distance before the constraint acts. The walls are the planes listed for
     the slot from the step's contacts (:func:`list_wall_contact`), added in the order of
-    :func:`wall_after` (:func:`next_wall`; equal walls at once): the contacts arrive in any order on a
-    GPU, and the sum of three or more floats depends on its order.
-
-    - A box's wall by an edge or a corner (listed with its second face, and its third: outward normal
-      and offset, a zero normal for none) lends what lies behind all of them (:func:`box_density`).
-    - Two perpendicular planes (a concave corner: a tank's wall and its floor) both lend the quadrant
-      behind the two; the second time is taken off, as the wedge behind the first at ``-dist`` of the
-      second.
+    :func:`plane_after` (equal planes at once): the contacts arrive in any order on a GPU, and the
+    sum of three or more floats depends on its order. The sum is scaled by the slot's share of the
+    solid behind them (:func:`scale_wall_shares`).
     """
-    count = wp.min(slots.wall_count[i], WALL_CONTACTS_PER_SLOT)
-    share = wp.vec4(0.0)
-    last = wp.vec4(0.0)
-    last_edge = wp.vec4(0.0)
-    last_corner = wp.vec4(0.0)
-    for t in range(count):
-        found, plane, edge, corner = next_wall(slots, i, t > 0, last, last_edge, last_corner)
-        if found == 0:
-            break
-        last = plane
-        last_edge = edge
-        last_corner = corner
-        normal = wp.vec3(plane[0], plane[1], plane[2])
-        dist = wp.max(wp.dot(normal, x) - plane[3], 0.0)
-        if dist >= p.h:
-            continue
-        side = wp.vec3(edge[0], edge[1], edge[2])
-        if wp.length_sq(side) > 0.0:
-            side2 = wp.vec3(corner[0], corner[1], corner[2])
-            depth2 = p.h
-            if wp.length_sq(side2) > 0.0:
-                depth2 = behind(corner, x)
-            solid = box_density(dist, behind(edge, x), depth2, p, wall_table, wall_table_grad)
-            # the depths fall along the faces' outward normals
-            g = normal * solid[0] - side * solid[1] - side2 * solid[2]
-            share += wp.vec4(g[0], g[1], g[2], solid[3]) * float(found)
-            continue
-        half = plane_density(dist, p, wall_table, wall_table_grad)
-        share += wp.vec4(normal[0] * half[0], normal[1] * half[0], normal[2] * half[0], half[1]) * float(found)
-        # the quadrant this plane shares with each later perpendicular plane, taken off once
-        other_last = plane
-        other_last_edge = edge
-        other_last_corner = corner
-        for _u in range(t + 1, count):
-            other_found, other, other_edge, other_corner = next_wall(
-                slots, i, True, other_last, other_last_edge, other_last_corner
-            )
-            if other_found == 0:
-                break
-            other_last = other
-            other_last_edge = other_edge
-            other_last_corner = other_corner
-            if wp.length_sq(wp.vec3(other_edge[0], other_edge[1], other_edge[2])) > 0.0:
-                continue
-            other_normal = wp.vec3(other[0], other[1], other[2])
-            if wp.abs(wp.dot(normal, other_normal)) > PERPENDICULAR:
-                continue
-            other_dist = wp.max(wp.dot(other_normal, x) - other[3], 0.0)
-            if other_dist >= p.h:
-                continue
-            quadrant = box_density(dist, -other_dist, p.h, p, wall_table, wall_table_grad)
-            # the depth behind the other plane is -other_dist: it falls along that plane's normal
-            g = normal * quadrant[0] - other_normal * quadrant[1]
-            share -= wp.vec4(g[0], g[1], g[2], quadrant[3]) * float(found * other_found)
-    return share
+    return planes_share(slots, i, x, p, wall_table, wall_table_grad) * slots.wall_factor[i]
+
+
+@wp.func
+def box_density(dist: float, depth: float, depth2: float, p: FluidParams, wall_table: wp.array[float]):
+    """A box's share of ``rho / rho0`` by an edge or a corner.
+
+    ``dist`` outside the first face, ``depth`` and ``depth2`` behind the planes of the second and the
+    third (``h``: none). Trilinear in :func:`~.calibration.wall_edge_tables`, stored after the plane's
+    table.
+    """
+    u = dist / p.wall_table_step
+    i = wp.min(int(u), WALL_TABLE_SIZE - 2)
+    fu = u - float(i)
+    depth_step = 2.0 * p.h / float(EDGE_TABLE_SIZE - 1)
+    v = (wp.clamp(depth, -p.h, p.h) + p.h) / depth_step
+    j = wp.min(int(v), EDGE_TABLE_SIZE - 2)
+    fv = v - float(j)
+    w = (wp.clamp(depth2, -p.h, p.h) + p.h) / depth_step
+    k = wp.min(int(w), EDGE_TABLE_SIZE - 2)
+    fw = w - float(k)
+    value = float(0.0)
+    for corner in range(8):
+        di = corner & 1
+        dj = (corner >> 1) & 1
+        dk = (corner >> 2) & 1
+        weight = wp.where(di == 1, fu, 1.0 - fu) * wp.where(dj == 1, fv, 1.0 - fv) * wp.where(dk == 1, fw, 1.0 - fw)
+        value += wall_table[WALL_TABLE_SIZE + ((i + di) * EDGE_TABLE_SIZE + j + dj) * EDGE_TABLE_SIZE + k + dk] * weight
+    return value * p.wall_scale
 
 
 @wp.struct
@@ -246,7 +164,6 @@ class FluidWallContacts:
     shape_type: wp.array[wp.int32]
     shape_scale: wp.array[wp.vec3]
     shape_transform: wp.array[wp.transform]  # in the body's frame (static: world)
-    reach: float  # a box's second face within this of the particle makes its wall an edge [m] (the kernel's h)
 
 
 @wp.func
@@ -260,13 +177,12 @@ def box_face_plane(pose: wp.transform, scale: wp.vec3, axis: int, p: wp.vec3):
 
 
 @wp.func
-def box_edge(pose: wp.transform, scale: wp.vec3, x: wp.vec3, reach: float, plane: wp.vec4):
-    """A box wall's plane, edge and corner (:func:`fluid_wall_share`), from where the particle lies.
+def box_faces(pose: wp.transform, scale: wp.vec3, x: wp.vec3, reach: float):
+    """The faces of a box that the solid within ``reach`` of ``x`` lies behind, as planes (outward normal, offset).
 
     The particle lies furthest outside the first face; the second is the next furthest, if within
-    ``reach`` (behind its plane or outside it), and the third likewise. Outside ``reach`` of any edge,
-    or inside the box (its contact pushes it out), the contact's ``plane`` stays and there is no edge
-    (a zero vector).
+    ``reach`` (behind its plane or outside it), and the third likewise; a face not needed is a zero
+    vector. Inside the box (its contact pushes the particle out) there is no face.
     """
     p = wp.transform_point(wp.transform_inverse(pose), x)
     q = wp.vec3(wp.abs(p[0]) - scale[0], wp.abs(p[1]) - scale[1], wp.abs(p[2]) - scale[2])
@@ -281,12 +197,163 @@ def box_edge(pose: wp.transform, scale: wp.vec3, x: wp.vec3, reach: float, plane
     if q[third] > q[second]:
         second, third = third, second
     none = wp.vec4(0.0)
-    if q[first] <= 0.0 or q[second] <= -reach:
-        return plane, none, none
+    if q[first] <= 0.0:
+        return none, none, none
+    face = box_face_plane(pose, scale, first, p)
+    edge = none
     corner = none
+    if q[second] > -reach:
+        edge = box_face_plane(pose, scale, second, p)
     if q[third] > -reach:
         corner = box_face_plane(pose, scale, third, p)
-    return box_face_plane(pose, scale, first, p), box_face_plane(pose, scale, second, p), corner
+    return face, edge, corner
+
+
+@wp.func
+def behind(face: wp.vec4, x: wp.vec3):
+    """How deep ``x`` lies behind a face's plane (outward normal, offset) [m]: negative outside it."""
+    return face[3] - (face[0] * x[0] + face[1] * x[1] + face[2] * x[2])
+
+
+@wp.func
+def wall_after(plane_a: wp.vec4, shape_a: int, plane_b: wp.vec4, shape_b: int):
+    """Whether a listed wall comes after another: by plane (:func:`plane_after`), then by shape."""
+    if plane_after(plane_a, plane_b):
+        return True
+    if plane_after(plane_b, plane_a):
+        return False
+    return shape_a > shape_b
+
+
+@wp.func
+def next_wall(slots: FluidSlots, i: int, after_last: bool, last: wp.vec4, last_shape: int):
+    """The first wall of slot ``i`` in :func:`wall_after`'s order (after the ``last`` one if ``after_last``).
+
+    Returns how often it is listed (0: none left), its plane and its shape.
+    """
+    n = slots.particle.shape[0]
+    count = wp.min(slots.wall_count[i], WALL_CONTACTS_PER_SLOT)
+    found = int(0)
+    plane = wp.vec4(0.0)
+    shape = int(-1)
+    for e in range(count):
+        q = slots.wall_plane[e * n + i]
+        qs = slots.wall_shape[e * n + i]
+        if after_last and not wall_after(q, qs, last, last_shape):
+            continue
+        if found == 0 or wall_after(plane, shape, q, qs):
+            plane = q
+            shape = qs
+            found = 1
+        elif q == plane and qs == shape:
+            found += 1
+    return found, plane, shape
+
+
+@wp.func
+def wall_pose(walls: FluidWallContacts, shape: int):
+    """World pose of a listed wall's shape (a kinematic body's where it is during the step)."""
+    pose = walls.shape_transform[shape]
+    body = walls.shape_body[shape]
+    if body >= 0:
+        pose = walls.body_q[body] * pose
+    return pose
+
+
+@wp.func
+def wall_faces(walls: FluidWallContacts, shape: int, x: wp.vec3, reach: float):
+    """:func:`box_faces` of a listed wall's shape if it is a box (else no face)."""
+    if walls.shape_type[shape] == GeoType.BOX:
+        return box_faces(wall_pose(walls, shape), walls.shape_scale[shape], x, reach)
+    none = wp.vec4(0.0)
+    return none, none, none
+
+
+@wp.func
+def solid_share(
+    slots: FluidSlots,
+    i: int,
+    x: wp.vec3,
+    walls: FluidWallContacts,
+    p: FluidParams,
+    wall_table: wp.array[float],
+    wall_table_grad: wp.array[float],
+):
+    """The share of slot ``i``'s ``rho / rho0`` that the solid behind its listed walls holds, at ``x``.
+
+    Each wall in :func:`wall_after`'s order: a box by an edge or a corner lends what lies behind its faces
+    there (:func:`box_faces`, :func:`box_density`); any other wall its plane's half-space, less the quadrant
+    it shares with each later such wall whose plane meets it square (lent by both).
+    """
+    count = wp.min(slots.wall_count[i], WALL_CONTACTS_PER_SLOT)
+    total = float(0.0)
+    last = wp.vec4(0.0)
+    last_shape = int(-1)
+    for t in range(count):
+        found, plane, shape = next_wall(slots, i, t > 0, last, last_shape)
+        if found == 0:
+            break
+        last = plane
+        last_shape = shape
+        face, edge, corner = wall_faces(walls, shape, x, p.h)
+        if wp.length_sq(edge) > 0.0:
+            depth2 = p.h
+            if wp.length_sq(corner) > 0.0:
+                depth2 = behind(corner, x)
+            total += box_density(-behind(face, x), behind(edge, x), depth2, p, wall_table) * float(found)
+            continue
+        normal = wp.vec3(plane[0], plane[1], plane[2])
+        dist = wp.max(wp.dot(normal, x) - plane[3], 0.0)
+        if dist >= p.h:
+            continue
+        total += plane_density(dist, p, wall_table, wall_table_grad)[1] * float(found)
+        # the quadrant it shares with each later plane that meets it square, taken off once
+        other_last = plane
+        other_last_shape = shape
+        for _u in range(t + 1, count):
+            other_found, other, other_shape = next_wall(slots, i, True, other_last, other_last_shape)
+            if other_found == 0:
+                break
+            other_last = other
+            other_last_shape = other_shape
+            # (a box by its edge lends only what lies behind its faces)
+            other_face, other_edge, other_corner = wall_faces(walls, other_shape, x, p.h)
+            if wp.length_sq(other_edge) > 0.0:
+                continue
+            other_normal = wp.vec3(other[0], other[1], other[2])
+            if wp.abs(wp.dot(normal, other_normal)) > PERPENDICULAR:
+                continue
+            other_dist = wp.max(wp.dot(other_normal, x) - other[3], 0.0)
+            if other_dist < p.h:
+                total -= box_density(dist, -other_dist, p.h, p, wall_table) * float(found * other_found)
+    return total
+
+
+@wp.kernel
+def scale_wall_shares(
+    params: wp.array[FluidParams],
+    slots: FluidSlots,
+    walls: FluidWallContacts,
+    wall_table: wp.array[float],
+    wall_table_grad: wp.array[float],
+):
+    """Once per step, after the walls are listed: each slot's solid share over its planes' (1 for no wall).
+
+    The passes scale the planes' share and its gradient by it (:func:`fluid_wall_share`): exact at the
+    listed position, and the planes' gradient between.
+    """
+    i = wp.tid()
+    if slots.particle[i] < 0:
+        return
+    factor = float(1.0)
+    if slots.wall_count[i] > 0:
+        p = params[0]
+        xm = slots.xm[i]
+        x = wp.vec3(xm[0], xm[1], xm[2])
+        planes = planes_share(slots, i, x, p, wall_table, wall_table_grad)[3]
+        if planes > 1.0e-6:
+            factor = wp.max(solid_share(slots, i, x, walls, p, wall_table, wall_table_grad), 0.0) / planes
+    slots.wall_factor[i] = factor
 
 
 @wp.func
@@ -313,17 +380,6 @@ def list_wall_contact(k: int, walls: FluidWallContacts, slot_of_particle: wp.arr
     if t < WALL_CONTACTS_PER_SLOT:
         normal = walls.normal[k]
         plane = wp.vec4(normal[0], normal[1], normal[2], wp.dot(normal, point))
-        edge = wp.vec4(0.0)
-        corner = wp.vec4(0.0)
-        shape = walls.shape[k]
-        if walls.shape_type[shape] == GeoType.BOX:
-            pose = walls.shape_transform[shape]
-            if body >= 0:
-                pose = walls.body_q[body] * pose
-            xm = slots.xm[slot]
-            x = wp.vec3(xm[0], xm[1], xm[2])
-            plane, edge, corner = box_edge(pose, walls.shape_scale[shape], x, walls.reach, plane)
         n = slots.particle.shape[0]
         slots.wall_plane[t * n + slot] = plane
-        slots.wall_edge[t * n + slot] = edge
-        slots.wall_corner[t * n + slot] = corner
+        slots.wall_shape[t * n + slot] = walls.shape[k]
