@@ -194,12 +194,14 @@ class FluidSolver:
             self.subiterations_total = wp.zeros(1, dtype=wp.int32)
             # gradient of the static walls' share of rho / rho0 per slot, from the density pass to the correction
             self.wall_grad = wp.zeros(n, dtype=wp.vec3)
-            # the plane's tables, then a box's edges' and corners' (walls.box_density)
-            wall_rho, wall_drho = wall_density_tables(d, h, self.mean_mass)
-            edge_rho, *edge_grads = wall_edge_tables(d, h, self.mean_mass)
-            self.wall_table = wp.array(np.concatenate([wall_rho, edge_rho]) / self.lattice_density, dtype=float)
+            # the plane's tables, then (with static or kinematic shapes to list as walls) a box's edges' and
+            # corners' (walls.box_density)
+            tables = [wall_density_tables(d, h, self.mean_mass)]
+            if model.shape_count and still_shapes(model).any():
+                tables.append(wall_edge_tables(d, h, self.mean_mass))
+            self.wall_table = wp.array(np.concatenate([t[0] for t in tables]) / self.lattice_density, dtype=float)
             self.wall_table_grad = wp.array(
-                np.concatenate([wall_drho, *edge_grads]) / self.lattice_density, dtype=float
+                np.concatenate([g for t in tables for g in t[1:]]) / self.lattice_density, dtype=float
             )
             self.last_finite_q = wp.array(model.particle_q.numpy()[fluid_particle], dtype=wp.vec3)
             #: device counters of what happened between two diagnostics calls, and the warnings that report it

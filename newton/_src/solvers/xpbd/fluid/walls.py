@@ -352,7 +352,9 @@ def scale_wall_shares(
         x = wp.vec3(xm[0], xm[1], xm[2])
         planes = planes_share(slots, i, x, p, wall_table, wall_table_grad)[3]
         if planes > 1.0e-6:
-            factor = wp.max(solid_share(slots, i, x, walls, p, wall_table, wall_table_grad), 0.0) / planes
+            # (a contact's plane supports its convex shape, and a corner's quadrant is lent at most twice: the
+            # solid never lends more than the planes; clamped, a plane at the end of its taper cannot blow up)
+            factor = wp.clamp(solid_share(slots, i, x, walls, p, wall_table, wall_table_grad) / planes, 0.0, 1.0)
     slots.wall_factor[i] = factor
 
 
