@@ -93,6 +93,7 @@ def main():
     edge_top = (ax < BOX[0]) & (ax > BOX[0] - first) & (ay < BOX[1] - 2.0 * D) & (z > BOX[2]) & (z < BOX[2] + first)
     interior = (np.abs(ax - 0.275) < 0.01) & (ay < 0.1) & (np.abs(z - 0.225) < 0.01)
     corner = (ax > HALF - first) & (ay < 0.1) & (z < first)  # the tank's wall meets its floor
+    upright = (ax > HALF - first) & (ay > HALF - first) & (np.abs(z - 0.225) < 0.03)  # two of its walls meet
     groups = {
         "interior": interior,
         "beside a side face": face,
@@ -101,6 +102,7 @@ def main():
         "convex edge, beside the side face": edge_side,
         "convex edge, on the top face": edge_top,
         "concave corner (tank wall and floor)": corner,
+        "concave corner (two tank walls)": upright,
     }
     record = {"device": args.device, "spacing_m": D, "particles": int(len(q)), "groups": {}}
     for name, sel in groups.items():
