@@ -8,6 +8,14 @@ nvidia-smi --query-gpu=name,driver_version,clocks.sm,clocks.max.sm --format=csv 
 # the GPU's model in the names of the files written (h100, h200, ...; "gpu" if not recognised)
 gpu=$(nvidia-smi --query-gpu=name --format=csv,noheader | head -1 | grep -oiE '[a-z]?[0-9]{2,4}[a-z]*' | head -1 | tr 'A-Z' 'a-z')
 gpu=${gpu:-gpu}
+# the 100k dam break with a change ($1, a patch) on, taken off and put back, in one session; records tagged $2
+dam_break_without() {
+  for v in after before after2; do
+    [ $v = before ] && git apply -R "$1"
+    [ $v = after2 ] && git apply "$1"
+    python3 -m benchmarks dam_break --trials 3 --json "$out/dam_break_100k_${2}_${v}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+  done
+}
 for what in "$@"; do
   case $what in
     bench)
@@ -95,17 +103,11 @@ for what in "$@"; do
     walls)
       # the walls' density by a box's edges and corners and in a tank's corner (docs/validation.rst "Where the method
       # fails"), the CUDA tests of the walls, and the 100k dam break with the change taken off and put back
-      # (WALLS_PATCH: git diff 3e34338 401fcfa -- newton/_src > walls.patch)
+      # (WALLS_PATCH: git diff 3e34338 ebe69bc -- newton/_src > walls.patch)
       python3 docs/validation/walls/edge_density.py --device cuda:0 --json "$out/edge_density_${gpu}.json" 2>&1 | grep particles
       python3 -m pytest -q -k "cuda and (wall or edge or rest_lattice or archimedes or floats)" \
         newton/tests/test_solver_xpbd_fluid.py 2>&1 | tail -2
-      if [ -n "${WALLS_PATCH:-}" ]; then
-        for v in after before after2; do
-          [ $v = before ] && git apply -R "$WALLS_PATCH"
-          [ $v = after2 ] && git apply "$WALLS_PATCH"
-          python3 -m benchmarks dam_break --trials 3 --json "$out/dam_break_100k_walls_${v}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
-        done
-      fi ;;
+      [ -n "${WALLS_PATCH:-}" ] && dam_break_without "$WALLS_PATCH" walls ;;
     collision)
       # the cost of continuous collision at the 100k dam break (docs/archive/performance_notebook.md "Continuous collision")
       for v in "" "--no-continuous-collision"; do
@@ -120,13 +122,7 @@ for what in "$@"; do
       done
       # a change to the guard taken off and put back between runs: COLLISION_PATCH names its patch
       # (the barrel-sided cylinders: git diff 4328822 41e52ea -- newton/_src > barrel.patch)
-      if [ -n "${COLLISION_PATCH:-}" ]; then
-        for v in after before after2; do
-          [ $v = before ] && git apply -R "$COLLISION_PATCH"
-          [ $v = after2 ] && git apply "$COLLISION_PATCH"
-          python3 -m benchmarks dam_break --trials 3 --json "$out/dam_break_100k_change_${v}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
-        done
-      fi
+      [ -n "${COLLISION_PATCH:-}" ] && dam_break_without "$COLLISION_PATCH" change
       python3 -m pytest -q -k cuda newton/tests/test_fluid_continuous_collision.py newton/tests/test_fluid_placement.py \
         newton/tests/test_fluid_diffuse.py 2>&1 | tail -5 ;;
     box-runs)
