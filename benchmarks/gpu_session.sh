@@ -102,8 +102,8 @@ for what in "$@"; do
         newton/tests/test_fluid_stress.py newton/tests/test_solver_xpbd_fluid.py 2>&1 | tail -5 ;;
     walls)
       # the walls' density by a box's edges and corners and in a tank's corner (docs/validation.rst "Where the method
-      # fails"), the CUDA tests of the walls, and the 100k dam break with the change taken off and put back
-      # (WALLS_PATCH: git diff 3e34338 ebe69bc -- newton/_src > walls.patch)
+      # fails"), the CUDA tests of the walls, and the 100k dam break with a change to the walls taken off and put
+      # back (WALLS_PATCH; the solid walls not adopted: git apply docs/archive/patches/solid_walls.patch first)
       python3 docs/validation/walls/edge_density.py --device cuda:0 --json "$out/edge_density_${gpu}.json" 2>&1 | grep particles
       python3 -m pytest -q -k "cuda and (wall or edge or rest_lattice or archimedes or floats)" \
         newton/tests/test_solver_xpbd_fluid.py 2>&1 | tail -2

@@ -11,13 +11,7 @@ import warp as wp
 from newton.tests.unittest_utils import add_function_test, get_test_devices
 
 import newton
-from newton._src.solvers.xpbd.fluid.calibration import (
-    EDGE_TABLE_SIZE,
-    WALL_TABLE_SIZE,
-    lattice_density,
-    wall_density_tables,
-    wall_edge_tables,
-)
+from newton._src.solvers.xpbd.fluid.calibration import wall_density_tables
 from newton._src.solvers.xpbd.fluid.config import FULL_NEIGHBOR_FACTOR, FluidTuning
 from newton._src.solvers.xpbd.fluid.density_constraint import density_constraint_lambda
 from newton._src.solvers.xpbd.fluid.neighbors import FluidNeighborSearch
@@ -1020,8 +1014,6 @@ def test_wall_density_does_not_depend_on_contact_order(test, device):
             plane[: len(listed), i] = listed
         slots.wall_count = wp.array([len(listed) for listed in lists], dtype=wp.int32, device=device)
         slots.wall_plane = wp.array(plane.reshape(-1, 4), dtype=wp.vec4, device=device)
-        slots.wall_shape = wp.zeros(WALL_CONTACTS_PER_SLOT * n, dtype=wp.int32, device=device)
-        slots.wall_factor = wp.ones(n, dtype=float, device=device)
         out = wp.zeros(n, dtype=wp.vec4, device=device)
         wp.launch(
             evaluate_wall_share,
@@ -1044,91 +1036,6 @@ def test_wall_density_does_not_depend_on_contact_order(test, device):
     twice = shares([planes[[0, 1, 0]]] * n)
     np.testing.assert_array_equal(shares([planes[[0, 0, 1]]] * n), twice)
     np.testing.assert_allclose(twice, 2.0 * single[0] + single[1], rtol=1.0e-5, atol=1.0e-7)
-
-
-def test_wall_edge_tables_continue_the_plane_table(test, device):
-    # deep behind the other faces' planes the box's solid is the half-space: the table is the plane's
-    d, h, mass = 1.0, 1.8, 1.0
-    plane, plane_grad = wall_density_tables(d, h, mass)
-    shape = (WALL_TABLE_SIZE, EDGE_TABLE_SIZE, EDGE_TABLE_SIZE)
-    rho, grad_a, grad_c, grad_e = (t.reshape(shape) for t in wall_edge_tables(d, h, mass))
-    np.testing.assert_allclose(rho[:, -1, -1], plane, rtol=1.0e-12, atol=1.0e-12)
-    np.testing.assert_allclose(grad_a[:, -1, -1], plane_grad, rtol=1.0e-12, atol=1.0e-12)
-    # in front of either, nothing; the two other faces are alike
-    np.testing.assert_allclose(rho[:, 0, :], 0.0, atol=1.0e-12)
-    np.testing.assert_allclose(rho, rho.transpose(0, 2, 1), atol=1.0e-12)
-    np.testing.assert_allclose(grad_c, grad_e.transpose(0, 2, 1), atol=1.0e-12)
-    # the depth derivative is the table's slope (away from the kinks of each row's share)
-    depth = np.linspace(-h, h, EDGE_TABLE_SIZE)
-    slope = np.diff(rho, axis=1) / np.diff(depth)[None, :, None]
-    mid = 0.5 * (grad_c[:, 1:] + grad_c[:, :-1])
-    smooth = np.abs(np.diff(grad_c, axis=1)) < 1.0e-9
-    np.testing.assert_allclose(slope[smooth], mid[smooth], rtol=1.0e-6, atol=1.0e-9)
-    test.assertGreater(np.count_nonzero(smooth), rho.size // 2)
-    # on the lattice it holds what a lattice around the solid misses: by an edge (x < 0, z > 0) and by a
-    # corner (x < 0, z > 0, y > 0), the faces half a spacing from the sites
-    g = np.arange(-4, 5) - 0.5
-    sites = np.stack(np.meshgrid(g, g, g, indexing="ij"), axis=-1).reshape(-1, 3)
-    k = 315.0 / (64.0 * np.pi * h**9)
-    a_samples = np.linspace(0.0, h, WALL_TABLE_SIZE)
-    lattice = lattice_density(d, h, mass)
-
-    def table(a, c, e):
-        # trilinear, as the solver reads it
-        rows = [[np.interp(a, a_samples, rho[:, j, m]) for m in range(EDGE_TABLE_SIZE)] for j in range(EDGE_TABLE_SIZE)]
-        return np.interp(c, depth, [np.interp(e, depth, row) for row in rows])
-
-    for a, c, e in ((0.5, -0.5, h), (0.5, 0.5, h), (0.5, 1.5, h), (0.5, -0.5, -0.5), (0.5, 0.5, 0.5)):
-        solid = (sites[:, 0] < 0.0) & (sites[:, 2] > 0.0) & (sites[:, 1] > (-1.0e9 if e >= h else 0.0))
-        # (the particle sits on a site, a outside x = 0, c behind z = 0 and e behind y = 0)
-        r2 = ((sites - np.array([a, e if e < h else 0.5, c])) ** 2).sum(axis=1)
-        missing = mass * k * (np.maximum(h * h - r2[solid], 0.0) ** 3).sum()
-        # within 0.2 % of the lattice's density (the depth's samples are 0.057 spacings apart)
-        test.assertAlmostEqual(table(a, c, e), missing, delta=2.0e-3 * lattice)
-
-
-def test_rest_lattice_reads_rest_density_by_box_edges_and_tank_corners(test, device):
-    # a wall lends the density of the lattice behind it; by a box's convex edge the solid is the wedge behind
-    # two faces, and in a tank's concave corner two walls share the quadrant behind both. Without the
-    # edges and the corners a rest lattice read 1.0455 diagonal to the edge, 1.0156 beside it and 1.0158
-    # in the corner (docs/validation/walls/edge_density.py)
-    d, mass = 0.05, 1000.0 * 0.05**3
-    flags = int(newton.ParticleFlags.ACTIVE | newton.ParticleFlags.FLUID)
-
-    def build(b):
-        r = -0.25 + (np.arange(10) + 0.5) * d
-        z = (np.arange(6) + 0.5) * d
-        x = np.stack(np.meshgrid(r, r, z, indexing="ij"), axis=-1).reshape(-1, 3)
-        outside = ~((np.abs(x[:, 0]) < 0.1) & (np.abs(x[:, 1]) < 0.1) & (x[:, 2] < 0.15))
-        for p in x[outside]:
-            b.add_particle(wp.vec3(*p), wp.vec3(0.0), mass, radius=0.5 * d, flags=flags)
-        cfg = newton.ModelBuilder.ShapeConfig(mu=0.0)
-        b.add_ground_plane(cfg=cfg)
-        add_tank(b, 0.25, 0.25, 1.0, 0.05)
-        b.add_shape_box(-1, xform=wp.transform(wp.vec3(0.0, 0.0, 0.075), wp.quat_identity()), hx=0.1, hy=0.1,
-                        hz=0.075, cfg=cfg)  # fmt: skip
-
-    # one substep of one pass: what the lattice as placed reads
-    sim = Sim(make_model(device, build), substeps=1, fps=6000.0, contacts=True, iterations=1, fluid_rest_distance=d)
-    q = sim.q()
-    sim.step(1)
-    fluid = sim.solver._fluid
-    slot_particle = fluid.search.slots.particle.numpy()
-    listed = slot_particle >= 0
-    rho = np.zeros(len(q))
-    rho[slot_particle[listed]] = fluid.density.numpy()[listed] / fluid.rest_density
-    ax, ay, z = np.abs(q[:, 0]), np.abs(q[:, 1]), q[:, 2]
-    groups = {
-        "diagonal to the box's top edges": (np.isclose(ax, 0.125) & (ay < 0.1) & np.isclose(z, 0.175)),
-        "beside the box, by its top edge": (np.isclose(ax, 0.125) & (ay < 0.1) & np.isclose(z, 0.125)),
-        "on the box, by its top edge": (np.isclose(ax, 0.075) & (ay < 0.1) & np.isclose(z, 0.175)),
-        "beside the box, by its bottom edge (on the floor)": (np.isclose(ax, 0.125) & (ay < 0.1) & np.isclose(z, 0.025)),
-        "the tank's wall meeting its floor": (np.isclose(ax, 0.225) & (ay < 0.15) & np.isclose(z, 0.025)),
-    }  # fmt: skip
-    for name, group in groups.items():
-        with test.subTest(name):
-            test.assertGreaterEqual(np.count_nonzero(group), 4)
-            np.testing.assert_allclose(rho[group], 1.0, atol=2.0e-3)
 
 
 def test_tolerance_stops_xpbd_iterations(test, device):

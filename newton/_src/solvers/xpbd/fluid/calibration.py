@@ -20,8 +20,6 @@ JACOBI_STEP_MARGIN = 0.875
 
 # samples of the wall density tables over [0, h]
 WALL_TABLE_SIZE = 64
-# samples of the edge tables over each depth [-h, h] behind a box's second and third face (the first's: WALL_TABLE_SIZE)
-EDGE_TABLE_SIZE = WALL_TABLE_SIZE
 
 
 def rest_lattice(rest_distance: float, h: float) -> np.ndarray:
@@ -123,55 +121,3 @@ def wall_density_tables(rest_distance: float, h: float, mass: float, size: int =
     window = 1.0 - t * t * (3.0 - 2.0 * t)
     dwindow = np.where((t > 0.0) & (t < 1.0), -6.0 * t * (1.0 - t) / (0.25 * d), 0.0)
     return rho * window, grad * window + rho * dwindow
-
-
-def wall_edge_tables(
-    rest_distance: float, h: float, mass: float, size: int = WALL_TABLE_SIZE, depth_size: int = EDGE_TABLE_SIZE
-):
-    """Poly6 density [kg/m^3] of a rest lattice continued into a box's edge or corner, and its derivatives.
-
-    The solid is what lies behind up to three perpendicular faces. For a particle ``a`` outside the
-    first face (sampled on ``[0, h]``), ``c`` deep behind the plane of the second and ``e`` behind the
-    third's (positive: level with the solid; each sampled on ``[-h, h]``), the ghost lattice is
-    :func:`wall_density_tables`' lattice behind the first face, its rows across the other two faces at
-    the particle's own spacing, each site weighted by the share of its cell behind both:
-    ``clamp((c + j d) / d + 1/2, 0, 1) clamp((e + k d) / d + 1/2, 0, 1)`` for the site ``(j d, k d)``
-    away. So a lattice at rest around an edge or a corner reads the rest density, the table is
-    continuous as a particle passes an edge, and where ``e = h`` it is the edge's wedge (where also
-    ``c = h``, the plane's table). The same taper in ``a`` as the plane's. Symmetric in ``c`` and ``e``.
-
-    Returns:
-        tuple: the densities and their derivatives against ``a``, ``c`` and ``e`` [kg/m^4], each ``size``
-        (``a``) x ``depth_size`` (``c``) x ``depth_size`` (``e``) samples, flattened in that order.
-    """
-    d = rest_distance
-    n = int(math.ceil(h / d))
-    rows = np.arange(-n - 1, n + 2)
-    k = 315.0 / (64.0 * math.pi * h**9)
-    a_samples = np.linspace(0.0, h, size)
-    depths = np.linspace(-h, h, depth_size)
-    # each row's share of its cell behind a face, and its derivative against the depth
-    share = depths[:, None] / d + rows[None, :] + 0.5
-    cell = np.clip(share, 0.0, 1.0)
-    dcell = np.where((share > 0.0) & (share < 1.0), 1.0 / d, 0.0)
-    shape = (size, depth_size, depth_size)
-    rho, grad_a, grad_c, grad_e = (np.zeros(shape) for _ in range(4))
-    for i, a in enumerate(a_samples):
-        x = a + 0.5 * d + np.arange(n + 1) * d
-        r2 = x[:, None, None] ** 2 + (rows[None, :, None] * d) ** 2 + (rows[None, None, :] * d) ** 2
-        q = np.maximum(h * h - r2, 0.0)
-        sites = mass * k * (q**3).sum(axis=0)
-        sites_grad = mass * k * (-6.0 * x[:, None, None] * q**2).sum(axis=0)
-        rho[i] = cell @ sites @ cell.T
-        grad_a[i] = cell @ sites_grad @ cell.T
-        grad_c[i] = dcell @ sites @ cell.T
-        grad_e[i] = cell @ sites @ dcell.T
-    t = np.clip((a_samples - 0.75 * d) / (0.25 * d), 0.0, 1.0)
-    window = (1.0 - t * t * (3.0 - 2.0 * t))[:, None, None]
-    dwindow = np.where((t > 0.0) & (t < 1.0), -6.0 * t * (1.0 - t) / (0.25 * d), 0.0)[:, None, None]
-    return (
-        (rho * window).reshape(-1),
-        (grad_a * window + rho * dwindow).reshape(-1),
-        (grad_c * window).reshape(-1),
-        (grad_e * window).reshape(-1),
-    )

@@ -446,8 +446,6 @@ class FluidNeighborSearch:
             #: static-wall planes of each slot, listed by the solver after a build (which clears the counts)
             self.wall_count = wp.zeros(n, dtype=wp.int32)
             self.wall_plane = wp.zeros(WALL_CONTACTS_PER_SLOT * n, dtype=wp.vec4)
-            self.wall_shape = wp.zeros(WALL_CONTACTS_PER_SLOT * n, dtype=wp.int32)
-            self.wall_factor = wp.ones(n, dtype=float)
         #: the slot arrays as one kernel argument
         self.slots = FluidSlots()
         self.slots.particle = self.sorted_particle
@@ -459,8 +457,6 @@ class FluidNeighborSearch:
         self.slots.lane_capacity = self.lane_capacity
         self.slots.wall_count = self.wall_count
         self.slots.wall_plane = self.wall_plane
-        self.slots.wall_shape = self.wall_shape
-        self.slots.wall_factor = self.wall_factor
         #: no contacts: a build that lists no walls
         self.no_walls = FluidWallContacts()
         self.no_walls.count = wp.zeros(1, dtype=int, device=device)

@@ -200,11 +200,8 @@ def list_shape_walls(
             continue
         normal = wp.transform_vector(pose, wp.vec3(hit[0], hit[1], hit[2]))
         slots.wall_plane[count * n + i] = wp.vec4(normal[0], normal[1], normal[2], wp.dot(normal, x) - hit[3])
-        slots.wall_shape[count * n + i] = s
         count += 1
     slots.wall_count[i] = count
-    # (the relaxation's walls are the planes as they are)
-    slots.wall_factor[i] = 1.0
 
 
 @wp.func

@@ -20,14 +20,7 @@ import numpy as np
 import warp as wp
 
 from ....geometry import ParticleFlags
-from .calibration import (
-    WALL_TABLE_SIZE,
-    lattice_density,
-    rest_lattice,
-    stable_relaxation,
-    wall_density_tables,
-    wall_edge_tables,
-)
+from .calibration import WALL_TABLE_SIZE, lattice_density, rest_lattice, stable_relaxation, wall_density_tables
 from .config import (
     AFFINE_REGULARIZER,
     AKINCI_ZERO,
@@ -87,7 +80,7 @@ from .velocity_passes import (
     gather_fluid_state,
     recover_nonfinite_fluid,
 )
-from .walls import FluidWallContacts, scale_wall_shares
+from .walls import FluidWallContacts
 
 
 class FluidSolver:
@@ -194,15 +187,9 @@ class FluidSolver:
             self.subiterations_total = wp.zeros(1, dtype=wp.int32)
             # gradient of the static walls' share of rho / rho0 per slot, from the density pass to the correction
             self.wall_grad = wp.zeros(n, dtype=wp.vec3)
-            # the plane's tables, then (with static or kinematic shapes to list as walls) a box's edges' and
-            # corners' (walls.box_density)
-            tables = [wall_density_tables(d, h, self.mean_mass)]
-            if model.shape_count and still_shapes(model).any():
-                tables.append(wall_edge_tables(d, h, self.mean_mass))
-            self.wall_table = wp.array(np.concatenate([t[0] for t in tables]) / self.lattice_density, dtype=float)
-            self.wall_table_grad = wp.array(
-                np.concatenate([g for t in tables for g in t[1:]]) / self.lattice_density, dtype=float
-            )
+            wall_rho, wall_drho = wall_density_tables(d, h, self.mean_mass)
+            self.wall_table = wp.array(wall_rho / self.lattice_density, dtype=float)
+            self.wall_table_grad = wp.array(wall_drho / self.lattice_density, dtype=float)
             self.last_finite_q = wp.array(model.particle_q.numpy()[fluid_particle], dtype=wp.vec3)
             #: device counters of what happened between two diagnostics calls, and the warnings that report it
             self.reports = FluidReports(model.particle_count)
@@ -217,8 +204,6 @@ class FluidSolver:
             setattr(other, field, getattr(self.search.slots, field))
         other.wall_count = self.search.wall_count
         other.wall_plane = self.search.wall_plane
-        other.wall_shape = self.search.wall_shape
-        other.wall_factor = self.search.wall_factor
         other.xm = self.xm_applied
         #: the slot views of the two position buffers; ``current`` is the one holding the positions
         self._slot_views = (self.search.slots, other)
@@ -400,23 +385,12 @@ class FluidSolver:
             walls.shape_body = m.shape_body
             walls.body_q = body_q if body_q is not None and m.body_count else self._no_bodies
             walls.body_flags = m.body_flags if m.body_count else self._no_body_flags
-            walls.shape_type = m.shape_type
-            walls.shape_scale = m.shape_scale
-            walls.shape_transform = m.shape_transform
         s = self.search
         # (the travel limit writes the positions upstream goes on with: not beside it)
         s.compute_keys(particle_q, m.particle_flags, m.particle_world, self.params, particle_q_start, particle_qd)
         with self.beside() if particle_q_start is not None else contextlib.nullcontext():
             s.sort(particle_q, m.particle_mass, m.particle_world, allocation_free=allocation_free)
             s.scan(walls)
-            if walls is not None:
-                # the solid's share behind each slot's walls, from where the build listed them
-                wp.launch(
-                    scale_wall_shares,
-                    dim=self.fluid_count,
-                    inputs=[self.params, s.slots, walls, self.wall_table, self.wall_table_grad],
-                    device=self.device,
-                )
         # the build gathered these positions into slot order: the first iteration uses them as they are
         self.slot_content = SlotContent.BUILT
         self.iteration = 0

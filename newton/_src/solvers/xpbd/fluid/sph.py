@@ -90,10 +90,6 @@ class FluidSlots:
     lane_capacity: int  # list rows of each lane: lane l stores its finds in rows [l, l + 1) * lane_capacity
     wall_count: wp.array[wp.int32]  # static-wall contacts listed for the slot (may exceed WALL_CONTACTS_PER_SLOT)
     wall_plane: wp.array[wp.vec4]  # their planes, transposed: unit normal (xyz) and offset n . p [m] (w)
-    wall_shape: wp.array[wp.int32]  # the shape of each listed plane, as wall_plane
-    wall_factor: wp.array[
-        float
-    ]  # the solid's share behind the slot's walls over their planes' (walls.scale_wall_shares)
 
 
 class SlotContent(enum.Enum):
