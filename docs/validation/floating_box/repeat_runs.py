@@ -7,7 +7,9 @@ On a GPU the summation order differs from run to run, so the test's outcome does
 ``floating_box`` ``--runs`` times per damping and writes, per run, the largest tilt [deg], the mean angular
 [rad/s] and vertical [m/s] speeds over the last second and the draft over Archimedes', with the count of
 runs that meet all four of issue #23's bounds. On the CPU every run is the same unless ``--offset`` moves
-run ``k``'s box ``k x offset`` [m] off centre at its start. Run from the repository root:
+run ``k``'s box ``k x offset`` [m] off centre at its start. ``--smoothing-ratio R`` sets ``fluid_smoothing_length``
+to ``R`` spacings (with ``docs/archive/patches/one_kernel_density.patch`` applied: the one-kernel solver's box).
+Run from the repository root:
 ``python docs/validation/floating_box/repeat_runs.py --device cuda:0 --runs 6 --damping 0.05 0.1 0.15 0.2 --json F``,
 ``python docs/validation/floating_box/repeat_runs.py --device cpu --runs 30 --offset 1e-6 --json F``.
 """
@@ -21,7 +23,7 @@ import warp as wp
 
 sys.path.insert(0, ".")
 from newton.examples.fluid.progress import track  # noqa: E402
-from newton.tests.test_fluid_still_water import floating_box  # noqa: E402
+from newton.tests.test_fluid_still_water import BOX_SPACING, floating_box  # noqa: E402
 
 
 def main():
@@ -30,16 +32,28 @@ def main():
     parser.add_argument("--runs", type=int, default=6)
     parser.add_argument("--damping", type=float, nargs="+", default=[0.1], help="fluid_nonaffine_damping values")
     parser.add_argument("--offset", type=float, default=0.0, help="run k starts the box k x this [m] off centre")
+    parser.add_argument(
+        "--smoothing-ratio",
+        type=float,
+        default=None,
+        help="fluid_smoothing_length over the spacing (default: the solver's)",
+    )
     parser.add_argument("--json", default=None)
     args = parser.parse_args()
     wp.config.quiet = True
     device = wp.get_device(args.device)
-    record = {"device": device.name if device.is_cuda else "cpu", "offset_m": args.offset, "runs": {}}
+    record = {
+        "device": device.name if device.is_cuda else "cpu",
+        "offset_m": args.offset,
+        "smoothing_ratio": args.smoothing_ratio,
+        "runs": {},
+    }
+    extra = {} if args.smoothing_ratio is None else {"fluid_smoothing_length": args.smoothing_ratio * BOX_SPACING}
     for damping in args.damping:
         rows = []
         for k in track(range(args.runs), f"damping {damping}", unit="run"):
             offset = k * args.offset
-            tilt, spin, sink, draft = floating_box(args.device, offset, fluid_nonaffine_damping=damping)
+            tilt, spin, sink, draft = floating_box(args.device, offset, fluid_nonaffine_damping=damping, **extra)
             rows.append({"offset_m": offset, "tilt_deg": tilt, "spin_rad_s": spin, "sink_m_s": sink, "draft": draft})
         record["runs"][str(damping)] = rows
         t = np.array([r["tilt_deg"] for r in rows])
