@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/archive/performance_notebook.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|box-runs|waves|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|box-runs|waves|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
 set -u
 out=${1:?output folder}; shift
 export PYTHONUNBUFFERED=1
@@ -125,6 +125,18 @@ for what in "$@"; do
       [ -n "${COLLISION_PATCH:-}" ] && dam_break_without "$COLLISION_PATCH" change
       python3 -m pytest -q -k cuda newton/tests/test_fluid_continuous_collision.py newton/tests/test_fluid_placement.py \
         newton/tests/test_fluid_diffuse.py 2>&1 | tail -5 ;;
+    lean)
+      # the floating box's lean against the curvature of the sum the solver holds (docs/validation.rst "Floating
+      # box", archive "The lean and the constraint's shear curvature"): twelve starts 1 um apart with today's
+      # solver, then with docs/archive/patches/one_kernel_density.patch at 1.8 and 2.0 spacings
+      r=docs/validation/floating_box/repeat_runs.py
+      python3 $r --device cuda:0 --runs 12 --offset 1e-6 --json "$out/repeat_offsets_today_${gpu}.json" 2>&1 | grep '^damping'
+      git apply --include='newton/*' docs/archive/patches/one_kernel_density.patch
+      for h in 1.8 2.0; do
+        python3 $r --device cuda:0 --runs 12 --offset 1e-6 --smoothing-ratio $h \
+          --json "$out/repeat_offsets_one_kernel_h${h}_${gpu}.json" 2>&1 | grep '^damping'
+      done
+      git apply -R --include='newton/*' docs/archive/patches/one_kernel_density.patch ;;
     box-runs)
       # the floating box of test_floating_box_comes_to_rest repeated at two non-affine dampings (its outcome on a GPU
       # changes from run to run; docs/validation.rst "Floating box"), and the 100k pool and dam break at each
