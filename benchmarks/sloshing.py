@@ -127,24 +127,38 @@ def analyse(t: np.ndarray, s: np.ndarray, periods: int, floor: float = 0.1) -> d
     }
 
 
+def tank_frames(args, model, d: float, device):
+    """The solver (keywords from ``args``), its contacts and a :class:`Frames` for a tank of spacing ``d`` [m].
+
+    Returns the solver, the frame, the two states and the non-affine damping under test (``--nonaffine-damping``,
+    else the solver's default).
+    """
+    solver = newton.solvers.SolverXPBD(model, **solver_keywords(args, d, damping=False))
+    damping = solver.fluid_nonaffine_damping if args.nonaffine_damping is None else args.nonaffine_damping
+    pipeline = newton.CollisionPipeline(model, soft_contact_max=4 * model.particle_count, soft_contact_gap=0.5 * d)
+    states = [model.state(), model.state()]
+    return solver, Frames(solver, pipeline, pipeline.contacts(), states, args.substeps, device), states, damping
+
+
+def settle(args, solver, frame, damping: float, label: str) -> None:
+    """``--settle`` seconds at ``--settle-damping``, then the damping under test.
+
+    The lattice start's settling motion would stay in an undamped tank as noise: it is settled out first.
+    """
+    solver.fluid_nonaffine_damping = args.settle_damping
+    for _ in track(range(round(args.settle * 60.0)), f"{label}: settling", unit="frame"):
+        frame()
+    solver.fluid_nonaffine_damping = damping
+
+
 def run(args, device) -> dict:
     length = args.length
     model, d = build(length, args.per_length, args.ratio, args.depth_particles, device, args.jitter)
     layers = max(1, round(args.ratio * args.per_length))
-    solver = newton.solvers.SolverXPBD(model, **solver_keywords(args, d, damping=False))
-    damping = solver.fluid_nonaffine_damping if args.nonaffine_damping is None else args.nonaffine_damping
-    pipeline = newton.CollisionPipeline(model, soft_contact_max=4 * model.particle_count, soft_contact_gap=0.5 * d)
-    contacts = pipeline.contacts()
-    states = [model.state(), model.state()]
-
-    frame = Frames(solver, pipeline, contacts, states, args.substeps, device)
+    solver, frame, states, damping = tank_frames(args, model, d, device)
 
     start = time.perf_counter()
-    # the lattice start's settling motion would stay in an undamped tank as noise: settle it out first
-    solver.fluid_nonaffine_damping = args.settle_damping
-    for _ in track(range(round(args.settle * 60.0)), "sloshing: settling", unit="frame"):
-        frame()
-    solver.fluid_nonaffine_damping = damping
+    settle(args, solver, frame, damping, "sloshing")
     q = states[0].particle_q.numpy().astype(np.float64)
     # the settled surface: the particles' volume over the floor area (the tank's own level)
     level = float(model.particle_count * d**3 / (length * args.depth_particles * d))

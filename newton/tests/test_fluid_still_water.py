@@ -209,6 +209,17 @@ def tilt_deg(body_q) -> float:
     return math.degrees(math.acos(min(1.0, 1.0 - 2.0 * (qx * qx + qy * qy))))
 
 
+def draft_over_archimedes(q, body_q) -> float:
+    """The box's draft over Archimedes' from the particle positions ``q`` and the box's pose ``body_q``.
+
+    The still level is read away from the box, as test_floating_box_draft_matches_archimedes does.
+    """
+    d, box = BOX_SPACING, BOX_HALF_HEIGHT
+    far = (np.abs(q[:, 0]) > 0.15 + 2.0 * d) | (np.abs(q[:, 1]) > 0.15 + 2.0 * d)
+    level = np.percentile(q[far, 2], 99) + 0.5 * d
+    return float((level - (body_q[2] - box)) / (BOX_DENSITY / 1000.0 * 2.0 * box))
+
+
 def floating_box(device, offset=0.0, **solver_kwargs):
     """A 500 kg/m^3 box 0.3 x 0.3 m wide and 4 spacings (0.2 m) tall on a 0.8 m pool 0.3 m deep at 0.05 m,
     8 x 2, no viscosity, 5 s, the box started ``offset`` [m] off centre.
@@ -219,7 +230,6 @@ def floating_box(device, offset=0.0, **solver_kwargs):
     angular and vertical speed over the last second, and its draft over Archimedes' (the still level
     away from the box, as test_floating_box_draft_matches_archimedes).
     """
-    d, box, density = BOX_SPACING, BOX_HALF_HEIGHT, BOX_DENSITY
     sim = floating_box_sim(device, offset, **solver_kwargs)
     sim.step(240)
     tilt, spin, sink = [], [], []
@@ -229,11 +239,7 @@ def floating_box(device, offset=0.0, **solver_kwargs):
         tilt.append(tilt_deg(body_q))
         spin.append(float(np.linalg.norm(body_qd[3:])))
         sink.append(abs(float(body_qd[2])))
-    q = sim.q()
-    far = (np.abs(q[:, 0]) > 0.15 + 2.0 * d) | (np.abs(q[:, 1]) > 0.15 + 2.0 * d)
-    level = np.percentile(q[far, 2], 99) + 0.5 * d
-    draft = (level - (body_q[2] - box)) / (density / 1000.0 * 2.0 * box)
-    return max(tilt), float(np.mean(spin)), float(np.mean(sink)), draft
+    return max(tilt), float(np.mean(spin)), float(np.mean(sink)), draft_over_archimedes(sim.q(), body_q)
 
 
 def test_floating_box_comes_to_rest(test, device):

@@ -24,23 +24,15 @@ import warp as wp
 sys.path.insert(0, ".")
 from newton.examples.fluid.progress import track  # noqa: E402
 from newton.tests.test_fluid_still_water import (  # noqa: E402
-    BOX_DENSITY,
     BOX_HALF_HEIGHT,
     BOX_POOL_HALF,
     BOX_SPACING,
+    draft_over_archimedes,
     floating_box_sim,
     tilt_deg,
 )
 
 BINS = 6  # height bins below the box's bottom [spacings]
-
-
-def draft_over_archimedes(q: np.ndarray, body_q: np.ndarray) -> float:
-    """The box's draft over Archimedes', as test_fluid_still_water.floating_box reads it."""
-    d = BOX_SPACING
-    far = (np.abs(q[:, 0]) > 0.15 + 2.0 * d) | (np.abs(q[:, 1]) > 0.15 + 2.0 * d)
-    level = np.percentile(q[far, 2], 99) + 0.5 * d
-    return float((level - (body_q[2] - BOX_HALF_HEIGHT)) / (BOX_DENSITY / 1000.0 * 2.0 * BOX_HALF_HEIGHT))
 
 
 def main():

@@ -20,13 +20,18 @@ Usage: python docs/validation/sloshing/packing_shear.py [--device cpu] [--packin
 
 import argparse
 import json
+import os
 import sys
 
 import numpy as np
+import warp as wp
 from scipy.linalg import expm
 from scipy.spatial import cKDTree
 
 sys.path.insert(0, ".")
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from lattice_shear import STEP, poly6, spiky  # noqa: E402
+
 from benchmarks import rest_column  # noqa: E402
 from benchmarks.frames import add_solver_arguments, contact_frames  # noqa: E402
 from newton.examples.fluid.progress import track  # noqa: E402
@@ -34,21 +39,10 @@ from newton.examples.fluid.progress import track  # noqa: E402
 RATIOS = (1.8, 2.0, 2.2, 2.5)  # smoothing lengths [spacings]
 REACH = 3.2  # interior: this far inside the packing's bounds [spacings]
 DIRECTIONS = 12
-STEP = 1.0e-3  # the shear's finite difference
-
-
-def poly6(r, h):
-    return np.maximum(h * h - r * r, 0.0) ** 3
-
-
-def spiky(r, h):
-    return np.maximum(h - r, 0.0) ** 3
 
 
 def settled_packing(args) -> np.ndarray:
     """The still column after ``args.seconds`` [s], positions [m]."""
-    import warp as wp  # noqa: PLC0415
-
     wp.config.quiet = True
     device = wp.get_device(args.device)
     with wp.ScopedDevice(device):

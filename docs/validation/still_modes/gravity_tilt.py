@@ -24,9 +24,7 @@ import numpy as np
 import warp as wp
 
 sys.path.insert(0, ".")
-import newton  # noqa: E402
 from benchmarks import rest_column, sloshing  # noqa: E402
-from benchmarks.frames import Frames, solver_keywords  # noqa: E402
 from newton.examples.fluid.progress import track  # noqa: E402
 
 GRAVITY = 9.81  # [m/s^2]
@@ -41,15 +39,8 @@ def tilted(args, theta: float, device) -> dict:
     else:
         model, d = sloshing.build(args.length, args.per_length, args.ratio, args.depth_particles, device)
         length, width = args.length, args.depth_particles * (args.length / args.per_length)
-    solver = newton.solvers.SolverXPBD(model, **solver_keywords(args, d, damping=False))
-    damping = solver.fluid_nonaffine_damping if args.nonaffine_damping is None else args.nonaffine_damping
-    pipeline = newton.CollisionPipeline(model, soft_contact_max=4 * model.particle_count, soft_contact_gap=0.5 * d)
-    states = [model.state(), model.state()]
-    frame = Frames(solver, pipeline, pipeline.contacts(), states, args.substeps, device)
-    solver.fluid_nonaffine_damping = args.settle_damping
-    for _ in track(range(round(args.settle * 60.0)), f"gravity_tilt {theta} deg: settling", unit="frame"):
-        frame()
-    solver.fluid_nonaffine_damping = damping
+    solver, frame, states, damping = sloshing.tank_frames(args, model, d, device)
+    sloshing.settle(args, solver, frame, damping, f"gravity_tilt {theta} deg")
     level = model.particle_count * d**3 / (length * width)
     x_rest = float(states[0].particle_q.numpy()[:, 0].mean())
     t = math.radians(theta)
