@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/archive/performance_notebook.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|box-runs|waves|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|box-runs|waves|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
 set -u
 out=${1:?output folder}; shift
 export PYTHONUNBUFFERED=1
@@ -137,6 +137,36 @@ for what in "$@"; do
           --json "$out/repeat_offsets_one_kernel_h${h}_${gpu}.json" 2>&1 | grep '^damping'
       done
       git apply -R --include='newton/*' docs/archive/patches/one_kernel_density.patch ;;
+    kernel-shape)
+      # one kernel of the shape (1 - r/h)^2.5 against today's solver (docs/archive/validation_notebook.md, "The kernel's
+      # shape"; docs/archive/patches/one_kernel_polynomial.patch, FLUID_KERNEL_EXP), and spiky (exponent 3) for the
+      # dam break: the 100k dam break, the still column and the 100k pool (also at 8 x 4), the standing wave 8 across
+      # and the floating box's twelve starts
+      r=docs/validation/floating_box/repeat_runs.py
+      for v in today 2.5 3; do
+        if [ $v = 2.5 ]; then git apply --include='newton/*' docs/archive/patches/one_kernel_polynomial.patch; fi
+        [ $v != today ] && export FLUID_KERNEL_EXP=$v
+        tag=${v/#[0-9]*/one_kernel_exponent_$v}
+        echo "== $tag"
+        python3 -m benchmarks dam_break --trials 3 --json "$out/dam_break_100k_${tag}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+        [ $v = 3 ] && continue
+        python3 -m benchmarks rest_column --device cuda:0 --json "$out/rest_column_12x12x24_${tag}_${gpu}.json" 2>&1 \
+          | grep -A1 '^device' | tail -1
+        python3 -m benchmarks rest_column --device cuda:0 --n 50 --layers 40 \
+          --json "$out/rest_column_50x50x40_${tag}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+        if [ $v = 2.5 ]; then
+          for l in 24 40; do
+            n=12; [ $l = 40 ] && n=50
+            python3 -m benchmarks rest_column --device cuda:0 --n $n --layers $l --iterations 4 \
+              --json "$out/rest_column_${n}x${n}x${l}_${tag}_8x4_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+          done
+        fi
+        python3 -m benchmarks sloshing --device cuda:0 --depth-particles 8 \
+          --json "$out/sloshing_n20_8_across_${tag}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+        python3 $r --device cuda:0 --runs 12 --offset 1e-6 --json "$out/repeat_offsets_${tag}_${gpu}.json" 2>&1 | grep '^damping'
+      done
+      unset FLUID_KERNEL_EXP
+      git apply -R --include='newton/*' docs/archive/patches/one_kernel_polynomial.patch ;;
     box-runs)
       # the floating box of test_floating_box_comes_to_rest repeated at two non-affine dampings (its outcome on a GPU
       # changes from run to run; docs/validation.rst "Floating box"), and the 100k pool and dam break at each

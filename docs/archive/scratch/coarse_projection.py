@@ -150,8 +150,9 @@ def step(self, state_in, state_out, control, contacts, dt, **kwargs):
         project(state_out.particle_q.numpy().astype(np.float64), state_out.particle_qd.numpy(), fluid)
 
 
-if __name__ == "__main__":
-    newton.solvers.SolverXPBD.step = step
+def run_around(replacement):
+    """Run ``python -m benchmarks ARGS`` (or the script ``ARGS[0]``) with ``SolverXPBD.step`` replaced."""
+    newton.solvers.SolverXPBD.step = replacement
     sys.path.insert(0, ".")
     if sys.argv[1].endswith(".py"):
         script = sys.argv[1]
@@ -160,3 +161,7 @@ if __name__ == "__main__":
     else:
         sys.argv = ["benchmarks", *sys.argv[1:]]
         runpy.run_module("benchmarks", run_name="__main__")
+
+
+if __name__ == "__main__":
+    run_around(step)

@@ -11,7 +11,11 @@ recorded. Printed per group, by depth below the top particle and distance from t
 particle's own constraint lets go), and the RMS and largest speed. docs/archive/validation_notebook.md,
 "Where the fastest particles are".
 
-Usage: python docs/validation/still_modes/where_fastest.py [--n 12 --layers 24] [--json F.json]
+``--trace``: instead, over issue #23's whole window (3 s after the 2 s), every frame whose fastest particle
+exceeds 0.02 m/s prints its time, index, speed, depth and distance from a side wall, and at the end the
+most displaced particle's start and end (archive, "The kernel's shape").
+
+Usage: python docs/validation/still_modes/where_fastest.py [--n 12 --layers 24] [--json F.json | --trace]
 """
 
 import argparse
@@ -35,11 +39,31 @@ GROUPS = (
 )
 
 
+def trace(frame, edge: float, d: float):
+    """Print every frame's fastest particle above 0.02 m/s over the next 3 s, then the most displaced one."""
+    start = frame.states[0].particle_q.numpy().copy()
+    for f in range(180):
+        frame()
+        speed = np.linalg.norm(frame.states[0].particle_qd.numpy(), axis=1)
+        i = int(speed.argmax())
+        if speed[i] > 0.02:
+            q = frame.states[0].particle_q.numpy()
+            wall = min(q[i, 0], edge - q[i, 0], q[i, 1], edge - q[i, 1]) / d
+            depth = (q[:, 2].max() - q[i, 2]) / d
+            print(f"t {2 + (f + 1) / 60:.2f} s  particle {i}  {speed[i]:.3f} m/s  depth {depth:.2f}  wall {wall:.2f}")
+    q = frame.states[0].particle_q.numpy()
+    moved = np.linalg.norm(q - start, axis=1) / d
+    i = int(moved.argmax())
+    print(f"most displaced: particle {i}, {moved[i]:.2f} spacings, from {start[i] / d} to {q[i] / d} [d]")
+    print(f"more than 0.3 spacings: {int((moved > 0.3).sum())}")
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_solver_arguments(parser)
     parser.add_argument("--n", type=int, default=12)
     parser.add_argument("--layers", type=int, default=24)
+    parser.add_argument("--trace", action="store_true", help="every frame's fastest particle over 2-5 s")
     args = parser.parse_args()
     wp.config.quiet = True
     d = rest_column.SPACING
@@ -49,6 +73,10 @@ def main():
     fluid = solver._fluid
     for _ in range(120):
         frame()
+    edge = args.n * d
+    if args.trace:
+        trace(frame, edge, d)
+        return
     speeds, densities = [], []
     for _ in range(60):
         frame()
@@ -57,7 +85,6 @@ def main():
         speeds.append(np.linalg.norm(frame.states[0].particle_qd.numpy(), axis=1))
     speeds, densities = np.array(speeds), np.array(densities)
     q = frame.states[0].particle_q.numpy()
-    edge = args.n * d
     wall = np.minimum.reduce([q[:, 0], edge - q[:, 0], q[:, 1], edge - q[:, 1]]) / d
     depth = (q[:, 2].max() - q[:, 2]) / d
     rows = []

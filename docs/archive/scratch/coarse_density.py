@@ -1,0 +1,103 @@
+# SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
+# SPDX-License-Identifier: Apache-2.0
+
+"""Scratch (not adopted): a coarse density correction at the end of every ``SolverXPBD.step``.
+
+The density constraint's error, as the step's last pass read it (``rho / rho0 - 1`` per particle), is averaged
+over cells of ``COARSE_CELL`` spacings (``COARSE_D`` [m]) in the closed box ``COARSE_ORIGIN + [0, COARSE_BOX]``
+[m], with trilinear weights to the cell centres, mirrored at the box's walls. In the cells at least
+``COARSE_FULL`` full (the same weights counting particles), the compression ``e = max(error, 0)`` is removed by a
+displacement ``dx = grad phi`` with ``lap phi = e`` (``phi`` zero in the other cells, the free surface; no flux
+through the walls; a dense solve): ``div dx = e``, the volume the compression lacks. Each particle moves by
+``COARSE_BETA`` times ``dx`` interpolated with the same weights, and, as a density pass's move does, that move
+becomes velocity (``dx / dt``). Unlike the velocity projection of ``coarse_projection.py`` it acts only where
+the fluid is compressed, so a free surface's flows, which compress nothing, are left to the fine passes.
+``COARSE_SOURCE=count`` drives it by the deposited number density instead (``COARSE_BILATERAL=1``: both
+signs). Then runs ``python -m benchmarks ARGS`` (or a script, if the first argument ends in ``.py``).
+docs/archive/validation_notebook.md, "A coarse density correction against the ring".
+
+Usage: COARSE_BOX=0.6,0.6,3.0 COARSE_D=0.05 [COARSE_CELL=3 COARSE_BETA=0.5 COARSE_FULL=0.97 COARSE_ORIGIN=0,0,0]
+python docs/archive/scratch/coarse_density.py rest_column --layers 40
+"""
+
+import os
+import sys
+
+import numpy as np
+
+import newton
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from coarse_projection import DIMS, H, N, central, laplacian, run_around  # noqa: E402
+
+BETA = float(os.environ.get("COARSE_BETA", "0.5"))
+FULL = float(os.environ.get("COARSE_FULL", "0.97"))
+# 1: the full cells are held at the rest density from both sides (``e = n d^3 - 1``), not only compressed ones
+BILATERAL = os.environ.get("COARSE_BILATERAL", "0") == "1"
+# "count": the deposited number density, whose particle-scale noise is the size of the load, instead of the
+# constraint's own error
+SOURCE = os.environ.get("COARSE_SOURCE", "constraint")
+D = float(os.environ["COARSE_D"])
+ORIGIN = np.array([float(x) for x in os.environ.get("COARSE_ORIGIN", "0,0,0").split(",")])
+_solves = {}
+
+
+def weights(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The 8 cells (flat indices) and trilinear weights of each position; beyond a wall, the cell inside it."""
+    s = (q - ORIGIN) / H - 0.5
+    base = np.floor(s).astype(int)
+    f = s - base
+    cells, w = [], []
+    for o in np.ndindex(2, 2, 2):
+        o = np.array(o)
+        ijk = np.clip(base + o, 0, DIMS - 1)
+        cells.append(np.ravel_multi_index(ijk.T, DIMS))
+        w.append(np.prod(np.where(o == 1, f, 1.0 - f), axis=1))
+    return np.stack(cells, axis=1), np.stack(w, axis=1)
+
+
+def correct(q: np.ndarray, v: np.ndarray, fluid: np.ndarray, dt: float, error: np.ndarray | None = None) -> None:
+    x = q[fluid].astype(np.float64)
+    cells, w = weights(x)
+    fill = np.bincount(cells.reshape(-1), weights=w.reshape(-1), minlength=N) * (D / H) ** 3
+    if error is not None:
+        weight = np.bincount(cells.reshape(-1), weights=w.reshape(-1), minlength=N)
+        spread = np.bincount(cells.reshape(-1), weights=(w * error[:, None]).reshape(-1), minlength=N)
+        measured = 1.0 + spread / np.maximum(weight, 1.0e-12)
+    inside = fill >= FULL
+    key = inside.tobytes()
+    if key not in _solves:
+        _solves.clear()
+        _solves[key] = np.linalg.inv(laplacian(inside, fill)[0]) if inside.any() else None
+    inverse = _solves[key]
+    if inverse is None:
+        return
+    phi = np.zeros(N)
+    excess = (fill if error is None else measured)[inside] - 1.0
+    phi[inside] = inverse @ (excess if BILATERAL else np.maximum(excess, 0.0))
+    phi = phi.reshape(DIMS)
+    grad = np.stack([central(phi, a, 1.0) for a in range(3)], axis=-1).reshape(N, 3)
+    dx = BETA * np.einsum("pk,pka->pa", w, grad[cells])
+    index = np.nonzero(fluid)[0]
+    q[index] += dx.astype(q.dtype)
+    v[index] += (dx / dt).astype(v.dtype)
+
+
+_step = newton.solvers.SolverXPBD.step
+
+
+def step(self, state_in, state_out, control, contacts, dt, **kwargs):
+    _step(self, state_in, state_out, control, contacts, dt, **kwargs)
+    if BETA > 0.0:
+        fluid = (self.model.particle_flags.numpy() & int(newton.ParticleFlags.FLUID)) != 0
+        error = None
+        if SOURCE == "constraint":
+            f = self._fluid
+            slot = f.search.slot_of_particle.numpy()
+            error = f.density.numpy()[slot] / f.rest_density - 1.0
+            error = error[np.nonzero(fluid)[0]] if len(error) == len(fluid) else error
+        correct(state_out.particle_q.numpy(), state_out.particle_qd.numpy(), fluid, dt, error)
+
+
+if __name__ == "__main__":
+    run_around(step)
