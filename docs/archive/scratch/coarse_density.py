@@ -13,7 +13,7 @@ through the walls; a dense solve): ``div dx = e``, the volume the compression la
 becomes velocity (``dx / dt``). Unlike the velocity projection of ``coarse_projection.py`` it acts only where
 the fluid is compressed, so a free surface's flows, which compress nothing, are left to the fine passes.
 ``COARSE_SOURCE=count`` drives it by the deposited number density instead (``COARSE_BILATERAL=1``: both
-signs). Then runs ``python -m benchmarks ARGS`` (or a script, if the first argument ends in ``.py``).
+signs); ``COARSE_BODIES=1`` makes the cells the model's box bodies fill solid instead of free surface. Then runs ``python -m benchmarks ARGS`` (or a script, if the first argument ends in ``.py``).
 docs/archive/validation_notebook.md, "A coarse density correction against the ring".
 
 Usage: COARSE_BOX=0.6,0.6,3.0 COARSE_D=0.05 [COARSE_CELL=3 COARSE_BETA=0.5 COARSE_FULL=0.97 COARSE_ORIGIN=0,0,0]
@@ -39,7 +39,41 @@ BILATERAL = os.environ.get("COARSE_BILATERAL", "0") == "1"
 SOURCE = os.environ.get("COARSE_SOURCE", "constraint")
 D = float(os.environ["COARSE_D"])
 ORIGIN = np.array([float(x) for x in os.environ.get("COARSE_ORIGIN", "0,0,0").split(",")])
+# 1: the cells the model's box bodies fill are solid (no flux through them), not free surface
+BODIES = os.environ.get("COARSE_BODIES", "0") == "1"
 _solves = {}
+# sample points of a cell, in cell units from its centre, for the share a body fills
+_SAMPLES = (np.stack(np.meshgrid(*[np.arange(4)] * 3, indexing="ij"), axis=-1).reshape(-1, 3) + 0.5) / 4.0 - 0.5
+
+
+def solid_share(model, state) -> np.ndarray:
+    """The share of each cell inside the boxes attached to bodies, at ``state``'s body poses."""
+    share = np.zeros(N)
+    centres = (np.array(np.unravel_index(np.arange(N), DIMS)).T + 0.5) * H + ORIGIN
+    points = centres[:, None, :] + _SAMPLES[None] * H
+    body_q = state.body_q.numpy()
+    kinds, bodies = model.shape_type.numpy(), model.shape_body.numpy()
+    scales, local = model.shape_scale.numpy(), model.shape_transform.numpy()
+    for shape in np.nonzero((bodies >= 0) & (kinds == int(newton.GeoType.BOX)))[0]:
+        pose = body_q[bodies[shape]]
+        # the shape's frame in the world: body pose times the shape's local transform
+        rot = _rotation(pose[3:]) @ _rotation(local[shape][3:])
+        origin = pose[:3] + _rotation(pose[3:]) @ local[shape][:3]
+        inside = np.all(np.abs((points - origin) @ rot) <= scales[shape], axis=-1)
+        share = np.maximum(share, inside.mean(axis=1))
+    return share
+
+
+def _rotation(q: np.ndarray) -> np.ndarray:
+    """The rotation matrix of the unit quaternion ``(x, y, z, w)``."""
+    x, y, z, w = q
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
 
 
 def weights(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -56,7 +90,14 @@ def weights(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.stack(cells, axis=1), np.stack(w, axis=1)
 
 
-def correct(q: np.ndarray, v: np.ndarray, fluid: np.ndarray, dt: float, error: np.ndarray | None = None) -> None:
+def correct(
+    q: np.ndarray,
+    v: np.ndarray,
+    fluid: np.ndarray,
+    dt: float,
+    error: np.ndarray | None = None,
+    solid_part: np.ndarray | None = None,
+) -> None:
     x = q[fluid].astype(np.float64)
     cells, w = weights(x)
     fill = np.bincount(cells.reshape(-1), weights=w.reshape(-1), minlength=N) * (D / H) ** 3
@@ -64,17 +105,33 @@ def correct(q: np.ndarray, v: np.ndarray, fluid: np.ndarray, dt: float, error: n
         weight = np.bincount(cells.reshape(-1), weights=w.reshape(-1), minlength=N)
         spread = np.bincount(cells.reshape(-1), weights=(w * error[:, None]).reshape(-1), minlength=N)
         measured = 1.0 + spread / np.maximum(weight, 1.0e-12)
-    inside = fill >= FULL
-    key = inside.tobytes()
+    solid = None
+    if solid_part is not None:
+        solid = solid_part >= 0.5
+        inside = ~solid & (fill + solid_part >= FULL)
+    else:
+        inside = fill >= FULL
+    key = inside.tobytes() + (b"" if solid is None else solid.tobytes())
     if key not in _solves:
         _solves.clear()
-        _solves[key] = np.linalg.inv(laplacian(inside, fill)[0]) if inside.any() else None
+        _solves[key] = np.linalg.inv(laplacian(inside, fill, solid)[0]) if inside.any() else None
     inverse = _solves[key]
     if inverse is None:
         return
     phi = np.zeros(N)
     excess = (fill if error is None else measured)[inside] - 1.0
     phi[inside] = inverse @ (excess if BILATERAL else np.maximum(excess, 0.0))
+    if solid is not None:
+        # no flux into a body: its cells take their fluid neighbours' mean potential
+        phi = phi.reshape(DIMS)
+        known = inside.reshape(DIMS).astype(float)
+        total, count = np.zeros(DIMS), np.zeros(DIMS)
+        for axis in range(3):
+            for side in (-1, 1):
+                total += np.roll(phi * known, side, axis=axis)
+                count += np.roll(known, side, axis=axis)
+        fill_in = solid.reshape(DIMS) & (count > 0)
+        phi[fill_in] = total[fill_in] / count[fill_in]
     phi = phi.reshape(DIMS)
     grad = np.stack([central(phi, a, 1.0) for a in range(3)], axis=-1).reshape(N, 3)
     dx = BETA * np.einsum("pk,pka->pa", w, grad[cells])
@@ -96,7 +153,8 @@ def step(self, state_in, state_out, control, contacts, dt, **kwargs):
             slot = f.search.slot_of_particle.numpy()
             error = f.density.numpy()[slot] / f.rest_density - 1.0
             error = error[np.nonzero(fluid)[0]] if len(error) == len(fluid) else error
-        correct(state_out.particle_q.numpy(), state_out.particle_qd.numpy(), fluid, dt, error)
+        solid_part = solid_share(self.model, state_out) if BODIES else None
+        correct(state_out.particle_q.numpy(), state_out.particle_qd.numpy(), fluid, dt, error, solid_part)
 
 
 if __name__ == "__main__":

@@ -64,8 +64,10 @@ def operators(full: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return g, d, cells
 
 
-def laplacian(full: np.ndarray, fill: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def laplacian(full: np.ndarray, fill: np.ndarray, solid: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The Laplacian over the full cells (zero potential in the others, none through the walls) and those cells.
+
+    ``solid``: cells a body fills, through which nothing flows either (coarse_density.py's ``COARSE_BODIES``).
 
     ``COARSE_SURFACE=1``: the zero of the potential is placed at the free surface a partly filled
     neighbour holds, ``fill + 1/2`` cells from the full cell's centre (ghost fluid), not at its centre.
@@ -81,10 +83,13 @@ def laplacian(full: np.ndarray, fill: np.ndarray) -> tuple[np.ndarray, np.ndarra
                 nb[axis] += side
                 if nb[axis] < 0 or nb[axis] >= DIMS[axis]:
                     continue
-                k = index[np.ravel_multi_index(nb, DIMS)]
+                flat = np.ravel_multi_index(nb, DIMS)
+                k = index[flat]
                 if k >= 0:
                     a[row, row] -= 1.0
                     a[row, k] += 1.0
+                elif solid is not None and solid[flat]:
+                    continue
                 elif SURFACE:
                     a[row, row] -= 1.0 / (np.clip(fill[np.ravel_multi_index(nb, DIMS)], 0.0, 0.5) + 0.5)
                 else:
