@@ -13,7 +13,8 @@ through the walls; a dense solve): ``div dx = e``, the volume the compression la
 becomes velocity (``dx / dt``). Unlike the velocity projection of ``coarse_projection.py`` it acts only where
 the fluid is compressed, so a free surface's flows, which compress nothing, are left to the fine passes.
 ``COARSE_SOURCE=count`` drives it by the deposited number density instead (``COARSE_BILATERAL=1``: both
-signs); ``COARSE_BODIES=1`` makes the cells the model's box bodies fill solid instead of free surface. Then runs ``python -m benchmarks ARGS`` (or a script, if the first argument ends in ``.py``).
+signs); ``COARSE_BODIES=1`` makes the cells the model's box bodies fill solid instead of free surface, ``2``
+makes them part of the problem and moves each body with their mean displacement. Then runs ``python -m benchmarks ARGS`` (or a script, if the first argument ends in ``.py``).
 docs/archive/validation_notebook.md, "A coarse density correction against the ring".
 
 Usage: COARSE_BOX=0.6,0.6,3.0 COARSE_D=0.05 [COARSE_CELL=3 COARSE_BETA=0.5 COARSE_FULL=0.97 COARSE_ORIGIN=0,0,0]
@@ -39,16 +40,17 @@ BILATERAL = os.environ.get("COARSE_BILATERAL", "0") == "1"
 SOURCE = os.environ.get("COARSE_SOURCE", "constraint")
 D = float(os.environ["COARSE_D"])
 ORIGIN = np.array([float(x) for x in os.environ.get("COARSE_ORIGIN", "0,0,0").split(",")])
-# 1: the cells the model's box bodies fill are solid (no flux through them), not free surface
-BODIES = os.environ.get("COARSE_BODIES", "0") == "1"
+# 1: the cells the model's box bodies fill are solid (no flux through them), not free surface; 2: they are part
+# of the coarse problem (no compression of their own) and each body moves with the mean displacement of its cells
+BODIES = int(os.environ.get("COARSE_BODIES", "0"))
 _solves = {}
 # sample points of a cell, in cell units from its centre, for the share a body fills
 _SAMPLES = (np.stack(np.meshgrid(*[np.arange(4)] * 3, indexing="ij"), axis=-1).reshape(-1, 3) + 0.5) / 4.0 - 0.5
 
 
-def solid_share(model, state) -> np.ndarray:
-    """The share of each cell inside the boxes attached to bodies, at ``state``'s body poses."""
-    share = np.zeros(N)
+def solid_share(model, state) -> dict[int, np.ndarray]:
+    """The share of each cell inside the boxes attached to each body, at ``state``'s body poses."""
+    shares = {}
     centres = (np.array(np.unravel_index(np.arange(N), DIMS)).T + 0.5) * H + ORIGIN
     points = centres[:, None, :] + _SAMPLES[None] * H
     body_q = state.body_q.numpy()
@@ -60,8 +62,9 @@ def solid_share(model, state) -> np.ndarray:
         rot = _rotation(pose[3:]) @ _rotation(local[shape][3:])
         origin = pose[:3] + _rotation(pose[3:]) @ local[shape][:3]
         inside = np.all(np.abs((points - origin) @ rot) <= scales[shape], axis=-1)
-        share = np.maximum(share, inside.mean(axis=1))
-    return share
+        body = int(bodies[shape])
+        shares[body] = np.maximum(shares.get(body, np.zeros(N)), inside.mean(axis=1))
+    return shares
 
 
 def _rotation(q: np.ndarray) -> np.ndarray:
@@ -97,7 +100,8 @@ def correct(
     dt: float,
     error: np.ndarray | None = None,
     solid_part: np.ndarray | None = None,
-) -> None:
+) -> np.ndarray | None:
+    """Move the fluid by the correction; returns the cells' displacement field (before ``COARSE_BETA``)."""
     x = q[fluid].astype(np.float64)
     cells, w = weights(x)
     fill = np.bincount(cells.reshape(-1), weights=w.reshape(-1), minlength=N) * (D / H) ** 3
@@ -109,6 +113,9 @@ def correct(
     if solid_part is not None:
         solid = solid_part >= 0.5
         inside = ~solid & (fill + solid_part >= FULL)
+        if BODIES == 2:
+            inside |= solid
+            solid = None
     else:
         inside = fill >= FULL
     key = inside.tobytes() + (b"" if solid is None else solid.tobytes())
@@ -117,7 +124,7 @@ def correct(
         _solves[key] = np.linalg.inv(laplacian(inside, fill, solid)[0]) if inside.any() else None
     inverse = _solves[key]
     if inverse is None:
-        return
+        return None
     phi = np.zeros(N)
     excess = (fill if error is None else measured)[inside] - 1.0
     phi[inside] = inverse @ (excess if BILATERAL else np.maximum(excess, 0.0))
@@ -138,6 +145,7 @@ def correct(
     index = np.nonzero(fluid)[0]
     q[index] += dx.astype(q.dtype)
     v[index] += (dx / dt).astype(v.dtype)
+    return grad
 
 
 _step = newton.solvers.SolverXPBD.step
@@ -153,8 +161,16 @@ def step(self, state_in, state_out, control, contacts, dt, **kwargs):
             slot = f.search.slot_of_particle.numpy()
             error = f.density.numpy()[slot] / f.rest_density - 1.0
             error = error[np.nonzero(fluid)[0]] if len(error) == len(fluid) else error
-        solid_part = solid_share(self.model, state_out) if BODIES else None
-        correct(state_out.particle_q.numpy(), state_out.particle_qd.numpy(), fluid, dt, error, solid_part)
+        shares = solid_share(self.model, state_out) if BODIES else {}
+        solid_part = np.max(list(shares.values()), axis=0) if shares else None
+        grad = correct(state_out.particle_q.numpy(), state_out.particle_qd.numpy(), fluid, dt, error, solid_part)
+        if BODIES == 2 and grad is not None:
+            body_q, body_qd = state_out.body_q.numpy(), state_out.body_qd.numpy()
+            for body, share in shares.items():
+                if share.sum() > 0.0:
+                    move = BETA * (share[:, None] * grad).sum(axis=0) / share.sum()
+                    body_q[body, :3] += move.astype(body_q.dtype)
+                    body_qd[body, :3] += (move / dt).astype(body_qd.dtype)
 
 
 if __name__ == "__main__":
