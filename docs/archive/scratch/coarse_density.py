@@ -14,7 +14,8 @@ becomes velocity (``dx / dt``). Unlike the velocity projection of ``coarse_proje
 the fluid is compressed, so a free surface's flows, which compress nothing, are left to the fine passes.
 ``COARSE_SOURCE=count`` drives it by the deposited number density instead (``COARSE_BILATERAL=1``: both
 signs); ``COARSE_BODIES=1`` makes the cells the model's box bodies fill solid instead of free surface, ``2``
-makes them part of the problem and moves each body with their mean displacement. Then runs ``python -m benchmarks ARGS`` (or a script, if the first argument ends in ``.py``).
+makes them part of the problem and moves each body with their mean displacement; ``COARSE_VELOCITY=0`` keeps the
+move out of the velocity. Then runs ``python -m benchmarks ARGS`` (or a script, if the first argument ends in ``.py``).
 docs/archive/validation_notebook.md, "A coarse density correction against the ring".
 
 Usage: COARSE_BOX=0.6,0.6,3.0 COARSE_D=0.05 [COARSE_CELL=3 COARSE_BETA=0.5 COARSE_FULL=0.97 COARSE_ORIGIN=0,0,0]
@@ -43,6 +44,8 @@ ORIGIN = np.array([float(x) for x in os.environ.get("COARSE_ORIGIN", "0,0,0").sp
 # 1: the cells the model's box bodies fill are solid (no flux through them), not free surface; 2: they are part
 # of the coarse problem (no compression of their own) and each body moves with the mean displacement of its cells
 BODIES = int(os.environ.get("COARSE_BODIES", "0"))
+# 0: the move is not turned into velocity (the positions alone are corrected)
+VELOCITY = os.environ.get("COARSE_VELOCITY", "1") == "1"
 _solves = {}
 # sample points of a cell, in cell units from its centre, for the share a body fills
 _SAMPLES = (np.stack(np.meshgrid(*[np.arange(4)] * 3, indexing="ij"), axis=-1).reshape(-1, 3) + 0.5) / 4.0 - 0.5
@@ -144,7 +147,8 @@ def correct(
     dx = BETA * np.einsum("pk,pka->pa", w, grad[cells])
     index = np.nonzero(fluid)[0]
     q[index] += dx.astype(q.dtype)
-    v[index] += (dx / dt).astype(v.dtype)
+    if VELOCITY:
+        v[index] += (dx / dt).astype(v.dtype)
     return grad
 
 
