@@ -14,7 +14,7 @@ from newton._src.solvers.xpbd.fluid.calibration import jacobi_spectral_radius, s
 from newton._src.solvers.xpbd.fluid.config import DEFAULT_NONAFFINE_DAMPING
 from newton._src.solvers.xpbd.fluid.velocity_passes import apply_fluid_viscosity
 from newton.examples.fluid.common import add_closed_box
-from newton.tests.test_solver_xpbd_fluid import D, Sim, add_block, make_model, pool_with_box
+from newton.tests.test_solver_xpbd_fluid import D, Sim, add_block, make_model, pool_with_box, still_level
 
 
 def periodic_jacobi_radius(rest_distance: float, h: float, cells: int) -> float:
@@ -212,11 +212,10 @@ def tilt_deg(body_q) -> float:
 def draft_over_archimedes(q, body_q) -> float:
     """The box's draft over Archimedes' from the particle positions ``q`` and the box's pose ``body_q``.
 
-    The still level is read away from the box, as test_floating_box_draft_matches_archimedes does.
+    The still level is :func:`still_level` beside the box, as test_floating_box_draft_matches_archimedes reads it.
     """
-    d, box = BOX_SPACING, BOX_HALF_HEIGHT
-    far = (np.abs(q[:, 0]) > 0.15 + 2.0 * d) | (np.abs(q[:, 1]) > 0.15 + 2.0 * d)
-    level = np.percentile(q[far, 2], 99) + 0.5 * d
+    box = BOX_HALF_HEIGHT
+    level = still_level(q, 0.15, BOX_SPACING)
     return float((level - (body_q[2] - box)) / (BOX_DENSITY / 1000.0 * 2.0 * box))
 
 

@@ -91,7 +91,7 @@ def laplacian(full: np.ndarray, fill: np.ndarray, solid: np.ndarray | None = Non
                 elif solid is not None and solid[flat]:
                     continue
                 elif SURFACE:
-                    a[row, row] -= 1.0 / (np.clip(fill[np.ravel_multi_index(nb, DIMS)], 0.0, 0.5) + 0.5)
+                    a[row, row] -= 1.0 / (np.clip(fill[flat], 0.0, 0.5) + 0.5)
                 else:
                     a[row, row] -= 1.0
     return a / H**2, cells
