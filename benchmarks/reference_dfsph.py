@@ -144,41 +144,49 @@ def run_xpbd(args, L: float, times: np.ndarray) -> dict:
     }
 
 
-def dfsph_scene(L: float, d: float, depth: int, workdir: Path, t_end: float) -> dict:
-    """SPlisHSPlasH scene: the column (0, 0, 0) to (L, depth d, 2L), walls one spacing beyond."""
+def wall_box_scene(
+    d: float,
+    lo,
+    hi,
+    block_lo,
+    block_hi,
+    t_end: float,
+    workdir: Path,
+    configuration: dict,
+    material: dict,
+    map_cells: float = 1.0,
+) -> dict:
+    """A SPlisHSPlasH scene: a closed box of volume-map walls from ``lo`` to ``hi`` and a fluid block [m].
+
+    Args:
+        d: The particle spacing [m].
+        lo: The box's lower corner [m].
+        hi: The box's upper corner [m].
+        block_lo: The fluid lattice's first particle centre [m] (its regular sampling steps by ``d``).
+        block_hi: The fluid lattice's last particle centre [m].
+        t_end: Simulated time [s].
+        workdir: Where the box's mesh is written (and SPlisHSPlasH caches its volume map).
+        configuration: The solver's settings (SPlisHSPlasH's ``Configuration`` keys besides the common ones).
+        material: The fluid's settings besides its density (viscosity method and coefficient).
+        map_cells: The walls' volume-map cells per spacing.
+    """
     box = workdir / "box.obj"
     corners = [(x, y, z) for z in (-0.5, 0.5) for y in (-0.5, 0.5) for x in (-0.5, 0.5)]
     faces = [(1, 3, 4, 2), (5, 6, 8, 7), (1, 2, 6, 5), (3, 7, 8, 4), (1, 5, 7, 3), (2, 4, 8, 6)]
     lines = [f"v {x} {y} {z}" for x, y, z in corners]
     lines += [f"f {a} {b} {c}\nf {a} {c} {e}" for a, b, c, e in faces]
     box.write_text("\n".join(lines) + "\n")
-    width = depth * d
-    lo = np.array([-d, -d, -d])
-    hi = np.array([5.0 * L + d, width + d, 4.0 * L])
-    res = np.maximum(8, np.round((hi - lo) / d).astype(int))
+    lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
+    res = np.maximum(8, np.round(map_cells * (hi - lo) / d).astype(int))
     return {
         "Configuration": {
             "particleRadius": 0.5 * d,
-            "simulationMethod": 4,
             "gravitation": [0.0, 0.0, -G],
-            "timeStepSize": 0.001,
-            "cflMethod": 1,
-            "cflFactor": 1.0,
-            "cflMaxTimeStepSize": 0.005,
             "stopAt": float(t_end) + 1.0e-4,
             "boundaryHandlingMethod": 2,
-            "DFSPH": {
-                "minIterations": 2,
-                "maxIterations": 100,
-                "maxError": 0.05,
-                "maxIterationsV": 100,
-                "maxErrorV": 0.1,
-                "enableDivergenceSolver": True,
-            },
+            **configuration,
         },
-        "Materials": [
-            {"id": "Fluid", "density0": 1000, "viscosityMethod": 1, "Standard viscosity": {"viscosity": 0.01}}
-        ],
+        "Materials": [{"id": "Fluid", "density0": 1000, **material}],
         "RigidBodies": [
             {
                 "geometryFile": str(box),
@@ -191,16 +199,63 @@ def dfsph_scene(L: float, d: float, depth: int, workdir: Path, t_end: float) -> 
                 "mapResolution": res.tolist(),
             }
         ],
-        # its regular sampling puts floor((end - start) / d) - 1 particles at start + d, start + 2d, ...:
-        # this is our lattice, centres from d/2 to L - d/2 (the 0.2 d keeps the floor away from rounding)
+        # its regular sampling puts floor((end - start) / d) - 1 particles at start + d, start + 2d, ...
+        # (the 0.2 d keeps the last one away from rounding)
         "FluidBlocks": [
             {
                 "denseMode": 0,
-                "start": [-0.5 * d] * 3,
-                "end": [L + 0.7 * d, width + 0.7 * d, 2.0 * L + 0.7 * d],
+                "start": (np.asarray(block_lo) - d).tolist(),
+                "end": (np.asarray(block_hi) + 1.2 * d).tolist(),
             }
         ],
     }
+
+
+#: DFSPH as in SPlisHSPlasH's dam-break scene: adaptive CFL step and the error bounds of its ``DFSPH`` group
+DFSPH_CONFIGURATION = {
+    "simulationMethod": 4,
+    "timeStepSize": 0.001,
+    "cflMethod": 1,
+    "cflFactor": 1.0,
+    "cflMaxTimeStepSize": 0.005,
+    "DFSPH": {
+        "minIterations": 2,
+        "maxIterations": 100,
+        "maxError": 0.05,
+        "maxIterationsV": 100,
+        "maxErrorV": 0.1,
+        "enableDivergenceSolver": True,
+    },
+}
+
+
+def dfsph_scene(L: float, d: float, depth: int, workdir: Path, t_end: float) -> dict:
+    """SPlisHSPlasH scene: the column (0, 0, 0) to (L, depth d, 2L), walls one spacing beyond."""
+    width = depth * d
+    # our lattice: centres from d/2 to L - d/2
+    return wall_box_scene(
+        d,
+        (-d, -d, -d),
+        (5.0 * L + d, width + d, 4.0 * L),
+        (0.5 * d,) * 3,
+        (L - 0.5 * d, width - 0.5 * d, 2.0 * L - 0.5 * d),
+        t_end,
+        workdir,
+        DFSPH_CONFIGURATION,
+        {"viscosityMethod": 1, "Standard viscosity": {"viscosity": 0.01}},
+    )
+
+
+def preload_gl_dispatch(case: str, argv, gl_dispatch: str = GL_DISPATCH) -> None:
+    """Re-execute ``python -m benchmarks <case> argv`` with ``gl_dispatch`` preloaded, unless it already is.
+
+    pysplishsplash segfaults on import without it.
+    """
+    preload = os.environ.get("LD_PRELOAD", "")
+    if gl_dispatch not in preload and os.path.exists(gl_dispatch):
+        os.environ["LD_PRELOAD"] = (gl_dispatch + " " + preload).strip()
+        rest = sys.argv[1:] if argv is None else argv
+        os.execv(sys.executable, [sys.executable, "-m", "benchmarks", case, *rest])
 
 
 def run_dfsph(args, L: float, times: np.ndarray, h: float) -> dict:
@@ -336,12 +391,8 @@ def main(argv=None):
     parser.set_defaults(device="cpu")
     parser.add_argument("--gl-dispatch", default=GL_DISPATCH, help="libGLdispatch to preload for pysplishsplash")
     args = parser.parse_args(argv)
-    preload = os.environ.get("LD_PRELOAD", "")
-    if not args.skip_dfsph and args.gl_dispatch not in preload and os.path.exists(args.gl_dispatch):
-        # pysplishsplash segfaults on import without it
-        os.environ["LD_PRELOAD"] = (args.gl_dispatch + " " + preload).strip()
-        rest = sys.argv[1:] if argv is None else argv
-        os.execv(sys.executable, [sys.executable, "-m", "benchmarks", "reference_dfsph", *rest])
+    if not args.skip_dfsph:
+        preload_gl_dispatch("reference_dfsph", argv, args.gl_dispatch)
 
     from . import validate_dam_break as validate  # noqa: PLC0415
 
