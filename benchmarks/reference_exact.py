@@ -97,11 +97,15 @@ class Run:
             step.setValueUInt(step.MIN_ITERATIONS, args.iterations)
             step.setValueUInt(step.MAX_ITERATIONS, args.iterations)
             step.setValueFloat(step.MAX_ERROR, 1.0e-6)
+        elif not args.divergence_solver:
+            step.setValueBool(step.USE_DIVERGENCE_SOLVER, False)
         self.settings = {
             name.lower(): float(step.getValueFloat(pid)) if "ERROR" in name else int(step.getValueUInt(pid))
             for name in ("MIN_ITERATIONS", "MAX_ITERATIONS", "MAX_ERROR", "MAX_ITERATIONS_V", "MAX_ERROR_V")
             if (pid := getattr(step, name, None)) is not None
         }
+        if method == "dfsph":
+            self.settings["use_divergence_solver"] = bool(step.getValueBool(step.USE_DIVERGENCE_SOLVER))
         self.settings["time_step_s"] = float(sph.TimeManager.getCurrent().getTimeStepSize())
         self.fluid = sph.Simulation.getCurrent().getFluidModel(0)
         self.n = self.fluid.numActiveParticles()
@@ -265,6 +269,12 @@ def main(argv=None):
         type=float,
         default=0.01,
         help="standard viscosity while settling [m^2/s] (SPlisHSPlasH's dam-break value; ours settles damped too)",
+    )
+    parser.add_argument(
+        "--no-divergence-solver",
+        dest="divergence_solver",
+        action="store_false",
+        help="DFSPH: switch its divergence (velocity) solve off, leaving the density solve",
     )
     parser.add_argument(
         "--no-control",
