@@ -54,9 +54,12 @@ from .reference_dfsph import DFSPH_CONFIGURATION, GL_DISPATCH, G, preload_gl_dis
 SPREAD = 1.36
 
 
-def configuration(method: str, substeps: int) -> dict:
-    """SPlisHSPlasH's scene settings for ``method``: ``pbf`` at our fixed step, or ``dfsph``."""
+def configuration(method: str, substeps: int, dfsph_fixed_step: bool = False) -> dict:
+    """SPlisHSPlasH's scene settings for ``method``: ``pbf`` at our fixed step, or ``dfsph`` (at its CFL step,
+    or with ``dfsph_fixed_step`` at PBF's)."""
     if method == "dfsph":
+        if dfsph_fixed_step:
+            return {**DFSPH_CONFIGURATION, "timeStepSize": 1.0 / (60.0 * substeps), "cflMethod": 0}
         return DFSPH_CONFIGURATION
     # PBF: a fixed step and the first-order velocity update of the paper (:class:`Run` sets the passes)
     return {"simulationMethod": 2, "timeStepSize": 1.0 / (60.0 * substeps), "cflMethod": 0, "velocityUpdateMethod": 0}
@@ -82,7 +85,7 @@ class Run:
             block_hi,
             t_end,
             workdir,
-            configuration(method, args.substeps),
+            configuration(method, args.substeps, args.dfsph_fixed_step),
             material,
             args.map_cells,
         )
@@ -271,6 +274,11 @@ def main(argv=None):
         help="standard viscosity while settling [m^2/s] (SPlisHSPlasH's dam-break value; ours settles damped too)",
     )
     parser.add_argument(
+        "--dfsph-fixed-step",
+        action="store_true",
+        help="DFSPH: PBF's fixed step of 1/(60 substeps) s instead of its CFL step",
+    )
+    parser.add_argument(
         "--no-divergence-solver",
         dest="divergence_solver",
         action="store_false",
@@ -308,7 +316,8 @@ def main(argv=None):
     rows = []
     for method in args.methods:
         row = measure(args, method)
-        row["substeps"] = args.substeps if method == "pbf" else "adaptive (CFL)"
+        fixed = method == "pbf" or args.dfsph_fixed_step
+        row["substeps"] = args.substeps if fixed else "adaptive (CFL)"
         row["iterations"] = args.iterations if method == "pbf" else "adaptive (to maxError)"
         row["viscosity_m2_s"] = args.viscosity
         row["settle_viscosity_m2_s"] = args.settle_viscosity
