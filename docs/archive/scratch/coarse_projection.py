@@ -16,12 +16,14 @@ docs/archive/scratch/coarse_projection.py rest_column --layers 24
 """
 
 import os
-import runpy
 import sys
 
 import numpy as np
 
 import newton
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from run_around import run_around  # noqa: E402, F401  (coarse_density imports it from here)
 
 BETA = float(os.environ.get("COARSE_BETA", "1"))
 CELL = int(os.environ.get("COARSE_CELL", "3"))
@@ -153,19 +155,6 @@ def step(self, state_in, state_out, control, contacts, dt, **kwargs):
     if BETA > 0.0:
         fluid = (self.model.particle_flags.numpy() & int(newton.ParticleFlags.FLUID)) != 0
         project(state_out.particle_q.numpy().astype(np.float64), state_out.particle_qd.numpy(), fluid)
-
-
-def run_around(replacement):
-    """Run ``python -m benchmarks ARGS`` (or the script ``ARGS[0]``) with ``SolverXPBD.step`` replaced."""
-    newton.solvers.SolverXPBD.step = replacement
-    sys.path.insert(0, ".")
-    if sys.argv[1].endswith(".py"):
-        script = sys.argv[1]
-        sys.argv = sys.argv[1:]
-        runpy.run_path(script, run_name="__main__")
-    else:
-        sys.argv = ["benchmarks", *sys.argv[1:]]
-        runpy.run_module("benchmarks", run_name="__main__")
 
 
 if __name__ == "__main__":

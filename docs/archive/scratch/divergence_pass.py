@@ -23,13 +23,15 @@ sloshing --per-length 20
 """
 
 import os
-import runpy
 import sys
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 import newton
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from run_around import run_around  # noqa: E402
 
 ITERATIONS = int(os.environ.get("DIV_ITERATIONS", "2"))
 OMEGA = float(os.environ.get("DIV_OMEGA", "0.5"))
@@ -85,11 +87,4 @@ def step(self, state_in, state_out, control, contacts, dt, **kwargs):
 
 
 if __name__ == "__main__":
-    newton.solvers.SolverXPBD.step = step
-    sys.path.insert(0, ".")
-    if sys.argv[1].endswith(".py"):
-        sys.argv = sys.argv[1:]
-        runpy.run_path(sys.argv[0], run_name="__main__")
-    else:
-        sys.argv = ["benchmarks", *sys.argv[1:]]
-        runpy.run_module("benchmarks", run_name="__main__")
+    run_around(step)
