@@ -48,7 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .reference_dfsph import DFSPH_CONFIGURATION, GL_DISPATCH, G, preload_gl_dispatch, wall_box_scene
+from .reference_dfsph import DFSPH_CONFIGURATION, GL_DISPATCH, preload_gl_dispatch, wall_box_scene
 
 #: layers of SPlisHSPlasH's wave tank over ours for the same settled depth over length (:func:`wave`)
 SPREAD = 1.36
@@ -165,8 +165,9 @@ def wave(args, method: str, amplitude: float) -> dict:
     # the fluid spreads into the spacing the walls keep free: 1.36 times the layers of our tank settle to
     # about the same depth over length (20 per L: 14 layers settle to h / L 0.5, 12 to 0.44)
     layers, across = args.wave_layers or max(1, round(SPREAD * args.ratio * n)), 4
-    theory = 2.0 * math.pi / math.sqrt(G * math.pi / length * math.tanh(math.pi * args.ratio))
-    t_wave = (args.periods + 0.75) * theory
+    # (the tank asked for sets how long to run; the settled tank, read below, sets the theory)
+    _, nominal = mode_velocity(np.zeros((1, 3)), length, args.ratio * length, 0.0)
+    t_wave = (args.periods + 0.75) * 2.0 * math.pi / nominal
     frames = np.arange(1, round((args.settle + t_wave) * 60.0) + 1) / 60.0
     run = Run(
         args,
@@ -227,8 +228,8 @@ def wave(args, method: str, amplitude: float) -> dict:
 
 
 def measure(args, method: str) -> dict:
-    """The wave's row: its run, less the same tank's run without the wave (``--control``), analysed as
-    :mod:`.sloshing` analyses ours."""
+    """The wave's row: its run, less the same tank's run without the wave (unless ``--no-control``), analysed
+    as :mod:`.sloshing` analyses ours."""
     from .sloshing import analyse  # noqa: PLC0415
 
     row = wave(args, method, args.amplitude)

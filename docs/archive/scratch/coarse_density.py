@@ -30,7 +30,8 @@ import numpy as np
 import newton
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from coarse_projection import DIMS, H, N, central, laplacian, run_around  # noqa: E402
+from coarse_projection import DIMS, H, N, central, laplacian  # noqa: E402
+from run_around import run_around  # noqa: E402
 
 BETA = float(os.environ.get("COARSE_BETA", "0.5"))
 FULL = float(os.environ.get("COARSE_FULL", "0.97"))

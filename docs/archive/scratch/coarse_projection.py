@@ -23,7 +23,7 @@ import numpy as np
 import newton
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from run_around import run_around  # noqa: E402, F401  (coarse_density imports it from here)
+from run_around import run_around  # noqa: E402
 
 BETA = float(os.environ.get("COARSE_BETA", "1"))
 CELL = int(os.environ.get("COARSE_CELL", "3"))
