@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/archive/performance_notebook.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|box-runs|waves|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|box-runs|waves|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
 set -u
 out=${1:?output folder}; shift
 export PYTHONUNBUFFERED=1
@@ -164,6 +164,28 @@ for what in "$@"; do
         python3 -m benchmarks sloshing --device cuda:0 --depth-particles 8 \
           --json "$out/sloshing_n20_8_across_${tag}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
         python3 $r --device cuda:0 --runs 12 --offset 1e-6 --json "$out/repeat_offsets_${tag}_${gpu}.json" 2>&1 | grep '^damping'
+      done
+      unset FLUID_KERNEL_EXP
+      git apply -R --include='newton/*' docs/archive/patches/one_kernel_polynomial.patch ;;
+    coarse-density)
+      # the coarse density correction in Warp kernels (docs/archive/scratch/coarse_density_warp.py; docs/archive/
+      # validation_notebook.md, "A coarse density correction against the ring") on the shape (1 - r/h)^2.5
+      # (one_kernel_polynomial.patch): its cost per captured frame at 100k and 1M (cells of 3 and 5 spacings, 2 to 8
+      # sweeps), the 100k pool and the 24- and 40-layer columns with it
+      s=docs/archive/scratch/coarse_density_warp.py
+      git apply --include='newton/*' docs/archive/patches/one_kernel_polynomial.patch
+      export FLUID_KERNEL_EXP=2.5
+      for c in 3:2 3:4 3:8 5:4; do
+        COARSE_CELL=${c%:*} COARSE_SWEEPS=${c#*:} python3 $s --time 50 40 cuda:0 200 2>&1 | grep particles
+      done
+      for c in 3 5; do COARSE_CELL=$c python3 $s --time 100 100 cuda:0 30 2>&1 | grep particles; done
+      # n x n x layers : box [m] : cell [spacings] : sweeps
+      for c in 50x40:2.5,2.5,3.0:3:4 50x40:2.5,2.5,3.0:3:8 50x40:2.5,2.5,3.0:5:4 12x24:0.6,0.6,1.8:3:4 \
+        12x40:0.6,0.6,3.0:3:4; do
+        IFS=: read -r size box cell k <<< "$c"; n=${size%x*}; l=${size#*x}
+        COARSE_CELL=$cell COARSE_SWEEPS=$k COARSE_BOX=$box COARSE_D=0.05 python3 $s rest_column --device cuda:0 --n $n \
+          --layers $l --json "$out/rest_column_${n}x${n}x${l}_exponent_2.5_coarse_density_warp_cell_${cell}_${k}_sweeps_${gpu}.json" \
+          2>&1 | grep -A1 '^device' | tail -1
       done
       unset FLUID_KERNEL_EXP
       git apply -R --include='newton/*' docs/archive/patches/one_kernel_polynomial.patch ;;

@@ -14,8 +14,10 @@ becomes velocity (``dx / dt``). Unlike the velocity projection of ``coarse_proje
 the fluid is compressed, so a free surface's flows, which compress nothing, are left to the fine passes.
 ``COARSE_SOURCE=count`` drives it by the deposited number density instead (``COARSE_BILATERAL=1``: both
 signs); ``COARSE_BODIES=1`` makes the cells the model's box bodies fill solid instead of free surface, ``2``
-makes them part of the problem and moves each body with their mean displacement; ``COARSE_VELOCITY=0`` keeps the
-move out of the velocity. Then runs ``python -m benchmarks ARGS`` (or a script, if the first argument ends in ``.py``).
+makes them part of the problem and moves each body with their mean displacement, ``3`` makes each body a rigid
+unknown of the problem (the fluid's and the bodies' moves of least kinetic energy that remove the compression,
+Batty et al. 2007's coupling; ``COARSE_ROTATION=0``: the bodies move without turning), their shares of the cells
+read at ``COARSE_SAMPLES``^3 points a cell (4); ``COARSE_VELOCITY=0`` keeps the move out of the velocity. Then runs ``python -m benchmarks ARGS`` (or a script, if the first argument ends in ``.py``).
 docs/archive/validation_notebook.md, "A coarse density correction against the ring".
 
 Usage: COARSE_BOX=0.6,0.6,3.0 COARSE_D=0.05 [COARSE_CELL=3 COARSE_BETA=0.5 COARSE_FULL=0.97 COARSE_ORIGIN=0,0,0]
@@ -47,9 +49,14 @@ ORIGIN = np.array([float(x) for x in os.environ.get("COARSE_ORIGIN", "0,0,0").sp
 BODIES = int(os.environ.get("COARSE_BODIES", "0"))
 # 0: the move is not turned into velocity (the positions alone are corrected)
 VELOCITY = os.environ.get("COARSE_VELOCITY", "1") == "1"
+# 0: (COARSE_BODIES=3) the coarse problem moves bodies without turning them; their torque is the contacts' alone
+ROTATION = os.environ.get("COARSE_ROTATION", "1") == "1"
 _solves = {}
 # sample points of a cell, in cell units from its centre, for the share a body fills
-_SAMPLES = (np.stack(np.meshgrid(*[np.arange(4)] * 3, indexing="ij"), axis=-1).reshape(-1, 3) + 0.5) / 4.0 - 0.5
+SAMPLES = int(os.environ.get("COARSE_SAMPLES", "4"))
+_SAMPLES = (
+    np.stack(np.meshgrid(*[np.arange(SAMPLES)] * 3, indexing="ij"), axis=-1).reshape(-1, 3) + 0.5
+) / SAMPLES - 0.5
 
 
 def solid_share(model, state) -> dict[int, np.ndarray]:
@@ -153,6 +160,75 @@ def correct(
     return grad
 
 
+def coupled_correct(model, state, q, v, fluid, dt, error, shares):
+    """``COARSE_BODIES=3``: the bodies are rigid unknowns of the coarse problem (Batty et al. 2007's coupling).
+
+    The move minimises the kinetic energy of the fluid's and the bodies' displacements subject to
+    ``div dx + grad s . (U + w x r) = e`` in the full cells (``s`` a body's share of the cell): the fluid moves
+    by ``grad phi``, each body by ``-rho V M^-1 J^T phi``, so the pressure that expands the water pushes the
+    body with the same impulse. Cells a body fills at least half are solid to the fluid (no flux).
+    """
+    x = q[fluid].astype(np.float64)
+    cells, w = weights(x)
+    fill = np.bincount(cells.reshape(-1), weights=w.reshape(-1), minlength=N) * (D / H) ** 3
+    weight = np.bincount(cells.reshape(-1), weights=w.reshape(-1), minlength=N)
+    spread = np.bincount(cells.reshape(-1), weights=(w * error[:, None]).reshape(-1), minlength=N)
+    measured = 1.0 + spread / np.maximum(weight, 1.0e-12)
+    solid_part = np.max(list(shares.values()), axis=0)
+    solid = solid_part >= 0.5
+    inside = ~solid & (fill + solid_part >= FULL)
+    if not inside.any():
+        return
+    a, index = laplacian(inside, fill, solid)
+    mass = model.particle_mass.numpy()[np.nonzero(fluid)[0][0]]
+    rho_v = mass / D**3 * H**3
+    centres = (np.array(np.unravel_index(index, DIMS)).T + 0.5) * H + ORIGIN
+    body_q, body_qd = state.body_q.numpy(), state.body_qd.numpy()
+    couplings = []
+    for body, share in shares.items():
+        grid = share.reshape(DIMS)
+        grad_s = np.stack([central(grid, k, 1.0) for k in range(3)], axis=-1).reshape(N, 3)[index]
+        pose = body_q[body]
+        rot = _rotation(pose[3:])
+        com = pose[:3] + rot @ model.body_com.numpy()[body]
+        jac = np.concatenate([grad_s, np.cross(centres - com, grad_s)], axis=1)
+        if not ROTATION:
+            jac[:, 3:] = 0.0
+        inv = np.zeros((6, 6))
+        inv[:3, :3] = np.eye(3) / model.body_mass.numpy()[body]
+        inv[3:, 3:] = np.linalg.inv(rot @ model.body_inertia.numpy()[body] @ rot.T)
+        a -= rho_v * jac @ inv @ jac.T
+        couplings.append((body, com, jac, inv))
+    phi = np.zeros(N)
+    phi[index] = np.linalg.solve(a, np.maximum(measured[index] - 1.0, 0.0))
+    grad = np.stack([central(phi.reshape(DIMS), k, 1.0) for k in range(3)], axis=-1).reshape(N, 3)
+    dx = BETA * np.einsum("pk,pka->pa", w, grad[cells])
+    particles = np.nonzero(fluid)[0]
+    q[particles] += dx.astype(q.dtype)
+    if VELOCITY:
+        v[particles] += (dx / dt).astype(v.dtype)
+    for body, com, jac, inv in couplings:
+        move = -BETA * rho_v * inv @ (jac.T @ phi[index])
+        lin, ang = move[:3], move[3:]
+        pose = body_q[body]
+        pose[:3] += (lin + np.cross(ang, pose[:3] - com)).astype(pose.dtype)
+        x4, y4, z4, w4 = pose[3:]
+        wx, wy, wz = ang
+        dq = 0.5 * np.array(
+            [
+                wx * w4 + wy * z4 - wz * y4,
+                wy * w4 + wz * x4 - wx * z4,
+                wz * w4 + wx * y4 - wy * x4,
+                -(wx * x4 + wy * y4 + wz * z4),
+            ]
+        )
+        quat = pose[3:] + dq
+        pose[3:] = (quat / np.linalg.norm(quat)).astype(pose.dtype)
+        if VELOCITY:
+            body_qd[body, :3] += (lin / dt).astype(body_qd.dtype)
+            body_qd[body, 3:] += (ang / dt).astype(body_qd.dtype)
+
+
 _step = newton.solvers.SolverXPBD.step
 
 
@@ -167,6 +243,18 @@ def step(self, state_in, state_out, control, contacts, dt, **kwargs):
             error = f.density.numpy()[slot] / f.rest_density - 1.0
             error = error[np.nonzero(fluid)[0]] if len(error) == len(fluid) else error
         shares = solid_share(self.model, state_out) if BODIES else {}
+        if BODIES == 3 and shares:
+            coupled_correct(
+                self.model,
+                state_out,
+                state_out.particle_q.numpy(),
+                state_out.particle_qd.numpy(),
+                fluid,
+                dt,
+                error,
+                shares,
+            )
+            return
         solid_part = np.max(list(shares.values()), axis=0) if shares else None
         grad = correct(state_out.particle_q.numpy(), state_out.particle_qd.numpy(), fluid, dt, error, solid_part)
         if BODIES == 2 and grad is not None:
