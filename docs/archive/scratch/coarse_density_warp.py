@@ -8,10 +8,12 @@ error from the step's last pass is spread over cells of ``COARSE_CELL`` spacings
 ``COARSE_ORIGIN + [0, COARSE_BOX]`` [m] with trilinear weights; in the cells at least ``COARSE_FULL`` full,
 ``lap phi = max(e, 0)`` (``phi`` zero in the other cells, no flux through the box's walls) and every fluid
 particle moves by ``COARSE_BETA`` times ``grad phi`` interpolated with the same weights, the move becoming
-velocity. In place of the dense inverse, ``COARSE_SWEEPS`` red-black sweeps of successive over-relaxation
+velocity. A cell is full against its own share of the box (a box that is not a whole number of cells ends inside
+its last ones). In place of the dense inverse, ``COARSE_SWEEPS`` red-black sweeps of successive over-relaxation
 (``COARSE_OMEGA``) run at every step, starting from the previous step's ``phi``: the load a still fluid carries
-changes little from one substep to the next, so the solve follows it. Nothing is allocated and nothing read
-back after the first call: the frame, correction included, can be captured in a CUDA graph.
+changes little from one substep to the next, so the solve follows it (with fewer than 4 sweeps it trails too far
+and runs away). The cells are made with the solver, and a step allocates and reads back nothing: the frame,
+correction included, can be captured in a CUDA graph.
 
 Run around a benchmark as coarse_density.py is (``COARSE_BOX=0.6,0.6,3.0 COARSE_D=0.05 python
 docs/archive/scratch/coarse_density_warp.py rest_column --layers 40``), or ``--time N LAYERS DEVICE [REPS]``: the
