@@ -17,7 +17,8 @@ signs); ``COARSE_BODIES=1`` makes the cells the model's box bodies fill solid in
 makes them part of the problem and moves each body with their mean displacement, ``3`` makes each body a rigid
 unknown of the problem (the fluid's and the bodies' moves of least kinetic energy that remove the compression,
 Batty et al. 2007's coupling; ``COARSE_ROTATION=0``: the bodies move without turning), their shares of the cells
-read at ``COARSE_SAMPLES``^3 points a cell (4); ``COARSE_VELOCITY=0`` keeps the move out of the velocity. Then runs ``python -m benchmarks ARGS`` (or a script, if the first argument ends in ``.py``).
+read at ``COARSE_SAMPLES``^3 points a cell (4); ``COARSE_VELOCITY=0`` keeps the move out of the velocity.
+Then runs ``python -m benchmarks ARGS`` (or a script, if the first argument ends in ``.py``).
 docs/archive/validation_notebook.md, "A coarse density correction against the ring".
 
 Usage: COARSE_BOX=0.6,0.6,3.0 COARSE_D=0.05 [COARSE_CELL=3 COARSE_BETA=0.5 COARSE_FULL=0.97 COARSE_ORIGIN=0,0,0]
@@ -104,6 +105,35 @@ def weights(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.stack(cells, axis=1), np.stack(w, axis=1)
 
 
+def spread_to_cells(x: np.ndarray, error: np.ndarray | None) -> tuple:
+    """The cells and weights of the positions ``x``, each cell's fill, and its weighted mean ``1 + error``
+    (``None`` without an error)."""
+    cells, w = weights(x)
+    fill = np.bincount(cells.reshape(-1), weights=w.reshape(-1), minlength=N) * (D / H) ** 3
+    measured = None
+    if error is not None:
+        weight = np.bincount(cells.reshape(-1), weights=w.reshape(-1), minlength=N)
+        spread = np.bincount(cells.reshape(-1), weights=(w * error[:, None]).reshape(-1), minlength=N)
+        measured = 1.0 + spread / np.maximum(weight, 1.0e-12)
+    return cells, w, fill, measured
+
+
+def cell_gradient(phi: np.ndarray) -> np.ndarray:
+    """The central gradient of a field on the cells (a potential, a body's share), ``(N, 3)``."""
+    phi = phi.reshape(DIMS)
+    return np.stack([central(phi, a, 1.0) for a in range(3)], axis=-1).reshape(N, 3)
+
+
+def move_fluid(q, v, fluid, cells, w, grad, dt: float) -> None:
+    """Move the fluid particles by ``COARSE_BETA`` times ``grad`` interpolated (and, with ``COARSE_VELOCITY``,
+    turn the move into velocity)."""
+    dx = BETA * np.einsum("pk,pka->pa", w, grad[cells])
+    index = np.nonzero(fluid)[0]
+    q[index] += dx.astype(q.dtype)
+    if VELOCITY:
+        v[index] += (dx / dt).astype(v.dtype)
+
+
 def correct(
     q: np.ndarray,
     v: np.ndarray,
@@ -113,13 +143,7 @@ def correct(
     solid_part: np.ndarray | None = None,
 ) -> np.ndarray | None:
     """Move the fluid by the correction; returns the cells' displacement field (before ``COARSE_BETA``)."""
-    x = q[fluid].astype(np.float64)
-    cells, w = weights(x)
-    fill = np.bincount(cells.reshape(-1), weights=w.reshape(-1), minlength=N) * (D / H) ** 3
-    if error is not None:
-        weight = np.bincount(cells.reshape(-1), weights=w.reshape(-1), minlength=N)
-        spread = np.bincount(cells.reshape(-1), weights=(w * error[:, None]).reshape(-1), minlength=N)
-        measured = 1.0 + spread / np.maximum(weight, 1.0e-12)
+    cells, w, fill, measured = spread_to_cells(q[fluid].astype(np.float64), error)
     solid = None
     if solid_part is not None:
         solid = solid_part >= 0.5
@@ -150,13 +174,8 @@ def correct(
                 count += np.roll(known, side, axis=axis)
         fill_in = solid.reshape(DIMS) & (count > 0)
         phi[fill_in] = total[fill_in] / count[fill_in]
-    phi = phi.reshape(DIMS)
-    grad = np.stack([central(phi, a, 1.0) for a in range(3)], axis=-1).reshape(N, 3)
-    dx = BETA * np.einsum("pk,pka->pa", w, grad[cells])
-    index = np.nonzero(fluid)[0]
-    q[index] += dx.astype(q.dtype)
-    if VELOCITY:
-        v[index] += (dx / dt).astype(v.dtype)
+    grad = cell_gradient(phi)
+    move_fluid(q, v, fluid, cells, w, grad, dt)
     return grad
 
 
@@ -168,12 +187,7 @@ def coupled_correct(model, state, q, v, fluid, dt, error, shares):
     by ``grad phi``, each body by ``-rho V M^-1 J^T phi``, so the pressure that expands the water pushes the
     body with the same impulse. Cells a body fills at least half are solid to the fluid (no flux).
     """
-    x = q[fluid].astype(np.float64)
-    cells, w = weights(x)
-    fill = np.bincount(cells.reshape(-1), weights=w.reshape(-1), minlength=N) * (D / H) ** 3
-    weight = np.bincount(cells.reshape(-1), weights=w.reshape(-1), minlength=N)
-    spread = np.bincount(cells.reshape(-1), weights=(w * error[:, None]).reshape(-1), minlength=N)
-    measured = 1.0 + spread / np.maximum(weight, 1.0e-12)
+    cells, w, fill, measured = spread_to_cells(q[fluid].astype(np.float64), error)
     solid_part = np.max(list(shares.values()), axis=0)
     solid = solid_part >= 0.5
     inside = ~solid & (fill + solid_part >= FULL)
@@ -186,8 +200,7 @@ def coupled_correct(model, state, q, v, fluid, dt, error, shares):
     body_q, body_qd = state.body_q.numpy(), state.body_qd.numpy()
     couplings = []
     for body, share in shares.items():
-        grid = share.reshape(DIMS)
-        grad_s = np.stack([central(grid, k, 1.0) for k in range(3)], axis=-1).reshape(N, 3)[index]
+        grad_s = cell_gradient(share)[index]
         pose = body_q[body]
         rot = _rotation(pose[3:])
         com = pose[:3] + rot @ model.body_com.numpy()[body]
@@ -201,12 +214,7 @@ def coupled_correct(model, state, q, v, fluid, dt, error, shares):
         couplings.append((body, com, jac, inv))
     phi = np.zeros(N)
     phi[index] = np.linalg.solve(a, np.maximum(measured[index] - 1.0, 0.0))
-    grad = np.stack([central(phi.reshape(DIMS), k, 1.0) for k in range(3)], axis=-1).reshape(N, 3)
-    dx = BETA * np.einsum("pk,pka->pa", w, grad[cells])
-    particles = np.nonzero(fluid)[0]
-    q[particles] += dx.astype(q.dtype)
-    if VELOCITY:
-        v[particles] += (dx / dt).astype(v.dtype)
+    move_fluid(q, v, fluid, cells, w, cell_gradient(phi), dt)
     for body, com, jac, inv in couplings:
         move = -BETA * rho_v * inv @ (jac.T @ phi[index])
         lin, ang = move[:3], move[3:]

@@ -122,6 +122,27 @@ def flat_index(i: int, j: int, k: int, dims: wp.vec3i) -> int:
     return (i * dims[1] + j) * dims[2] + k
 
 
+@wp.func
+def in_box(i: int, j: int, k: int, dims: wp.vec3i) -> bool:
+    return i >= 0 and i < dims[0] and j >= 0 and j < dims[1] and k >= 0 and k < dims[2]
+
+
+@wp.func
+def potential_or(phi: wp.array[float], i: int, j: int, k: int, dims: wp.vec3i, beyond: float) -> float:
+    """The potential of cell ``(i, j, k)``, or ``beyond`` where that cell lies past a wall."""
+    if in_box(i, j, k, dims):
+        return phi[flat_index(i, j, k, dims)]
+    return beyond
+
+
+@wp.func
+def open_face(i: int, j: int, k: int, dims: wp.vec3i) -> float:
+    """1 where the neighbour ``(i, j, k)`` lies inside the box (flux passes), 0 past a wall."""
+    if in_box(i, j, k, dims):
+        return 1.0
+    return 0.0
+
+
 @wp.kernel
 def relax_potential(
     inside: wp.array[wp.int32],
@@ -138,27 +159,24 @@ def relax_potential(
     i = c // (dims[1] * dims[2])
     if inside[c] == 0 or (i + j + k) % 2 != colour:
         return
-    # a neighbour beyond a wall passes no flux; one outside the full cells is the free surface (phi = 0)
-    count = float(0.0)
-    total = float(0.0)
-    if i > 0:
-        count += 1.0
-        total += phi[flat_index(i - 1, j, k, dims)]
-    if i < dims[0] - 1:
-        count += 1.0
-        total += phi[flat_index(i + 1, j, k, dims)]
-    if j > 0:
-        count += 1.0
-        total += phi[flat_index(i, j - 1, k, dims)]
-    if j < dims[1] - 1:
-        count += 1.0
-        total += phi[flat_index(i, j + 1, k, dims)]
-    if k > 0:
-        count += 1.0
-        total += phi[flat_index(i, j, k - 1, dims)]
-    if k < dims[2] - 1:
-        count += 1.0
-        total += phi[flat_index(i, j, k + 1, dims)]
+    # a neighbour beyond a wall passes no flux (it adds nothing and is not counted); one outside the full cells
+    # is the free surface (its phi is 0)
+    total = (
+        potential_or(phi, i - 1, j, k, dims, 0.0)
+        + potential_or(phi, i + 1, j, k, dims, 0.0)
+        + potential_or(phi, i, j - 1, k, dims, 0.0)
+        + potential_or(phi, i, j + 1, k, dims, 0.0)
+        + potential_or(phi, i, j, k - 1, dims, 0.0)
+        + potential_or(phi, i, j, k + 1, dims, 0.0)
+    )
+    count = (
+        open_face(i - 1, j, k, dims)
+        + open_face(i + 1, j, k, dims)
+        + open_face(i, j - 1, k, dims)
+        + open_face(i, j + 1, k, dims)
+        + open_face(i, j, k - 1, dims)
+        + open_face(i, j, k + 1, dims)
+    )
     solved = (total - cell * cell * source[c]) / count
     phi[c] = (1.0 - omega) * phi[c] + omega * solved
 
@@ -172,12 +190,9 @@ def potential_gradient(phi: wp.array[float], dims: wp.vec3i, cell: float, gradie
     # beyond a wall the potential is the cell's own
     here = phi[c]
     g = wp.vec3(
-        wp.where(i < dims[0] - 1, phi[flat_index(wp.min(i + 1, dims[0] - 1), j, k, dims)], here)
-        - wp.where(i > 0, phi[flat_index(wp.max(i - 1, 0), j, k, dims)], here),
-        wp.where(j < dims[1] - 1, phi[flat_index(i, wp.min(j + 1, dims[1] - 1), k, dims)], here)
-        - wp.where(j > 0, phi[flat_index(i, wp.max(j - 1, 0), k, dims)], here),
-        wp.where(k < dims[2] - 1, phi[flat_index(i, j, wp.min(k + 1, dims[2] - 1), dims)], here)
-        - wp.where(k > 0, phi[flat_index(i, j, wp.max(k - 1, 0), dims)], here),
+        potential_or(phi, i + 1, j, k, dims, here) - potential_or(phi, i - 1, j, k, dims, here),
+        potential_or(phi, i, j + 1, k, dims, here) - potential_or(phi, i, j - 1, k, dims, here),
+        potential_or(phi, i, j, k + 1, dims, here) - potential_or(phi, i, j, k - 1, dims, here),
     )
     gradient[c] = g / (2.0 * cell)
 
