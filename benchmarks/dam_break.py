@@ -246,6 +246,8 @@ def run(args) -> dict:
         "diffuse_emitted": int(solver.diffuse_emitted_count.numpy()[0]) if solver.max_diffuse_particles else 0,
         "speed_clamp_radii_per_substep": args.speed_clamp,
         "fluid_continuous_collision": solver.fluid_continuous_collision,
+        "fluid_coarse_correction": solver.fluid_coarse_correction,
+        "fluid_coarse_cell": solver.fluid_coarse_cell,
         "terrain_bump_spacings": args.terrain_bump,
         "shape_entries_stopped": stats["shape_entries_stopped"],
         "cuda_graph": graph is not None,

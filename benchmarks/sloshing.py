@@ -209,6 +209,8 @@ def run(args, device) -> dict:
         "iterations": args.iterations,
         "viscosity": solver.fluid_viscosity,
         "warm_start": solver.fluid_warm_start,
+        "coarse_correction": solver.fluid_coarse_correction,
+        "coarse_cell": solver.fluid_coarse_cell,
         "smoothing_length_m": solver.fluid_smoothing_length,
         "nonaffine_damping": damping,
         "settle_s": args.settle,

@@ -33,8 +33,14 @@ def thrown_blocks(device):
 
 
 def make_sim(device):
-    # warm start and diffuse particles on: both are state a reset must clear
-    return Sim(thrown_blocks(device), contacts=True, fluid_warm_start=0.5, max_diffuse_particles=512)
+    # warm start, diffuse particles and the coarse correction on: each is state a reset must clear
+    return Sim(
+        thrown_blocks(device),
+        contacts=True,
+        fluid_warm_start=0.5,
+        max_diffuse_particles=512,
+        fluid_coarse_correction=0.5,
+    )
 
 
 def mask(device, *worlds):

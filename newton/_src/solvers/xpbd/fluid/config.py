@@ -33,6 +33,10 @@ AFFINE_REGULARIZER = 1.0e-3
 MAX_CORRECTION_FRACTION = 0.5
 
 
+# edge of a cell of the coarse density correction unless given [rest distances] (docs/validation.rst, "Still water")
+DEFAULT_COARSE_CELL = 3.0
+
+
 # largest fluid_density_ramp: a ramp over 1 % compression would hold every loaded particle 0.5 % more compressed
 MAX_DENSITY_RAMP = 0.01
 
@@ -100,6 +104,8 @@ class FluidConfig:
     max_diffuse_particles: int = 0
     fluid_continuous_collision: bool = True
     fluid_relax_overpacked: bool = True
+    fluid_coarse_correction: float = 0.0
+    fluid_coarse_cell: float = DEFAULT_COARSE_CELL
 
     #: parameters that may change after construction (they live on the device)
     MUTABLE = (
@@ -133,6 +139,8 @@ class FluidConfig:
         self.fluid_max_neighbors = count_in_range("fluid_max_neighbors", self.fluid_max_neighbors, 4096)
         self.fluid_max_iterations = count_in_range("fluid_max_iterations", self.fluid_max_iterations, 64, lo=1)
         self.max_diffuse_particles = count_in_range("max_diffuse_particles", self.max_diffuse_particles, 2**31 - 1)
+        self.fluid_coarse_correction = real_in_range("fluid_coarse_correction", self.fluid_coarse_correction, 0.0, 1.0)
+        self.fluid_coarse_cell = real_in_range("fluid_coarse_cell", self.fluid_coarse_cell, 1.0, 16.0)
         for name in ("fluid_continuous_collision", "fluid_relax_overpacked"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name}={getattr(self, name)!r} is invalid: expected True or False")

@@ -154,6 +154,17 @@ class FluidSolver:
             self.fluid_particle = wp.array(fluid_particle.astype(np.int32), dtype=wp.int32)
             worlds = model.particle_world.numpy()[fluid_particle]
             world_count = int(worlds.max()) + 1 if len(worlds) else 0
+            #: the coarse density correction (None: off; a scene without it allocates and launches nothing)
+            self.coarse = None
+            if config.fluid_coarse_correction > 0.0:
+                # (imported here: a solver without it loads none of its kernels)
+                from .coarse_correction import CoarseCorrection, warn_about_dynamic_shapes  # noqa: PLC0415
+
+                warn_about_dynamic_shapes(model)
+                rows = np.where(worlds >= 0, worlds, int(model.world_count))
+                self.coarse = CoarseCorrection(
+                    rows, model.world_count, d, config.fluid_coarse_cell, config.fluid_coarse_correction, self.device
+                )
             self.search = FluidNeighborSearch(
                 self.fluid_particle, model.particle_count, world_count, h, capacity, capped, forced_lanes
             )
@@ -588,6 +599,17 @@ class FluidSolver:
                     outputs=self._recovery_outputs(state_out),
                     device=self.device,
                 )
+        if self.coarse is not None:
+            self.coarse.apply(
+                self.fluid_particle,
+                self.search.slot_of_particle,
+                self.search.wall_count,
+                self.search.wall_plane,
+                self.density,
+                self.rest_density,
+                state_out,
+                dt,
+            )
         if self.diffuse is not None:
             self._diffuse_pass(state_out, dt)
 
@@ -996,6 +1018,8 @@ class FluidSolver:
             )
             self.placement_pending = True
             self._capture_eager_relaxation()
+        if self.coarse is not None:
+            self.coarse.forget(mask, use_mask)
         if self.diffuse is not None:
             b = self.diffuse
             wp.launch(

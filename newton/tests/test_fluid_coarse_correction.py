@@ -1,0 +1,207 @@
+# SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
+# SPDX-License-Identifier: Apache-2.0
+
+"""The coarse density correction (``fluid_coarse_correction``): its cells, its load, its worlds (CPU and CUDA)."""
+
+import unittest
+import warnings
+
+import numpy as np
+import warp as wp
+from newton.tests.unittest_utils import add_function_test, get_test_devices
+
+import newton
+from newton._src.solvers.xpbd.fluid.coarse_correction import CELL_FULL, CELL_OUTSIDE, CELL_SURFACE
+from newton.examples.fluid.common import add_closed_box
+from newton.tests.test_fluid_still_water import floating_box_sim
+from newton.tests.test_solver_xpbd_fluid import Sim, add_block, make_model
+
+SPACING = 0.05  # [m]
+
+
+def column(device, n=6, layers=24, worlds=1, **solver_kwargs):
+    """An ``n`` x ``n`` x ``layers`` column at rest in a closed frictionless box per world (worlds at one place), 8 x 2."""
+    d = SPACING
+
+    def build(b):
+        add_block(b, (n, n, layers), origin=(0.5 * d, 0.5 * d, 0.5 * d), spacing=d, mass=1000.0 * d**3, radius=0.5 * d)
+        add_closed_box(b, n * d, 1.5 * layers * d)
+
+    if worlds == 1:
+        model = make_model(device, build, gravity=-9.81)
+    else:
+        builder = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))
+        for w in range(worlds):
+            world = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))
+            # the worlds differ: each is a column of its own depth
+            add_block(
+                world,
+                (n, n, layers - 4 * w),
+                origin=(0.5 * d, 0.5 * d, 0.5 * d),
+                spacing=d,
+                mass=1000.0 * d**3,
+                radius=0.5 * d,
+            )
+            add_closed_box(world, n * d, 1.5 * layers * d)
+            builder.add_world(world)
+        model = builder.finalize(device=device)
+    model.soft_contact_mu = 0.0
+    return Sim(model, substeps=8, contacts=True, fluid_rest_distance=d, **solver_kwargs)
+
+
+def max_compression(sim) -> float:
+    return sim.solver.fluid_diagnostics(sim.state_0)["max_compression"]
+
+
+def test_coarse_correction_is_validated_and_off_by_default(test, device):
+    for name, value in (
+        ("fluid_coarse_correction", -0.1),
+        ("fluid_coarse_correction", 1.5),
+        ("fluid_coarse_correction", float("nan")),
+        ("fluid_coarse_cell", 0.5),
+        ("fluid_coarse_cell", 17.0),
+    ):
+        with test.assertRaisesRegex(ValueError, f"{name}={value!r}"):
+            column(device, n=2, layers=2, **{name: value})
+    # off: no cells, no launches
+    test.assertIsNone(column(device, n=2, layers=2).solver._fluid.coarse)
+    on = column(device, n=2, layers=2, fluid_coarse_correction=0.5).solver
+    test.assertEqual(on.fluid_coarse_correction, 0.5)
+    test.assertEqual(on.fluid_coarse_cell, 3.0)
+    with test.assertRaises(AttributeError):
+        on.fluid_coarse_correction = 0.2
+
+
+def test_coarse_correction_carries_a_deep_load(test, device):
+    """The load the density passes leave compressed at the bottom of a deep column is carried by the cells."""
+    plain = column(device)
+    coarse = column(device, fluid_coarse_correction=0.5)
+    for sim in (plain, coarse):
+        sim.step(60)
+        test.assertTrue(np.isfinite(sim.q()).all())
+    compressed, corrected = max_compression(plain), max_compression(coarse)
+    # 24 layers at 8 x 2 leave the bottom about 0.5 % compressed; the correction removes most of it
+    test.assertGreater(compressed, 0.002)
+    test.assertLess(corrected, 0.25 * compressed)
+    # the column stands: nothing thrown up or lost
+    q = coarse.q()
+    test.assertLess(q[:, 2].max(), (24 + 3) * SPACING)
+    test.assertGreater(q[:, 2].min(), 0.0)
+
+
+def test_coarse_cells_know_surface_walls_and_fluid(test, device):
+    """The cells' kinds in a settled column: walls and air hold no fluid, the top layer is the free surface."""
+    sim = column(device, n=6, layers=12, fluid_coarse_correction=0.5)
+    sim.step(30)
+    c = sim.solver._fluid.coarse
+    row = 0 if c.boxes.dims.numpy()[0][0] else 1
+    dims = c.boxes.dims.numpy()[row]
+    first = c.row_first.numpy()[row]
+    kind = c.kind.numpy()[first : first + int(np.prod(dims))].reshape(dims)
+    phi = c.phi.numpy()[first : first + int(np.prod(dims))].reshape(dims)
+    # the box over 6 x 6 x 12 spacings is 2 x 2 x 4 cells of 3, with one to spare on every side
+    np.testing.assert_array_equal(dims, (4, 4, 6))
+    np.testing.assert_array_equal(c.boxes.corner.numpy()[row], (-1, -1, -1))
+    # the spare cells are the walls' and the floor's (their particles' walls have the centres behind them)
+    test.assertTrue((kind[0] == CELL_OUTSIDE).all() and (kind[-1] == CELL_OUTSIDE).all())
+    test.assertTrue((kind[:, :, 0] == CELL_OUTSIDE).all())
+    # inside: full below the cell the top layer is in (which the fluid fills only to 0.6 m, 7/8 of its room),
+    # the free surface from there up; the cells by the walls are full in the room the walls leave them
+    test.assertTrue((kind[1:3, 1:3, 1:4] == CELL_FULL).all())
+    test.assertTrue((kind[1:3, 1:3, 4:6] == CELL_SURFACE).all())
+    # the potential is a pressure's: zero at the surface, deepest at the floor
+    test.assertTrue((phi[1:3, 1:3, 1] < phi[1:3, 1:3, 3]).all())
+    test.assertTrue((phi[1:3, 1:3, 3] < 0.0).all())
+
+
+def test_coarse_cells_are_per_world(test, device):
+    """Worlds at one place have cells of their own: a world steps as it does alone."""
+    together = column(device, n=4, layers=16, worlds=2, fluid_coarse_correction=0.5)
+    alone = column(device, n=4, layers=16, worlds=1, fluid_coarse_correction=0.5)
+    together.step(10)
+    alone.step(10)
+    world = together.model.particle_world.numpy()
+    q = together.q()[world == 0]
+    if device.is_cuda:
+        np.testing.assert_allclose(q, alone.q(), atol=1.0e-4)
+    else:
+        np.testing.assert_array_equal(q, alone.q())
+    # the other world moved: its column differs
+    test.assertGreater(np.abs(together.q()[world == 1][:, 2].max() - q[:, 2].max()), 3.0 * SPACING)
+
+
+def test_coarse_potential_is_reset_with_its_world(test, device):
+    """A reset world starts its potential from zero again: its next frame is a new solver's first."""
+    sim = column(device, n=4, layers=16, worlds=2, fluid_coarse_correction=0.5)
+    sim.step(20)
+    mask = np.zeros(3, dtype=bool)
+    mask[0] = True
+    sim.solver.reset(sim.state_0, wp.array(mask, dtype=wp.bool, device=device))
+    sim.step(1)
+    fresh = column(device, n=4, layers=16, worlds=2, fluid_coarse_correction=0.5)
+    fresh.step(1)
+    world = sim.model.particle_world.numpy()
+    if device.is_cuda:
+        np.testing.assert_allclose(sim.q()[world == 0], fresh.q()[world == 0], atol=1.0e-4)
+    else:
+        np.testing.assert_array_equal(sim.q()[world == 0], fresh.q()[world == 0])
+    # the world not reset went on
+    test.assertGreater(np.abs(sim.q()[world == 1] - fresh.q()[world == 1]).max(), 0.1 * SPACING)
+
+
+def test_coarse_correction_in_a_full_closed_box(test, device):
+    """Fluid filling a closed box leaves no free surface: the screened potential stays bounded."""
+    d = SPACING
+
+    def build(b):
+        add_block(b, (4, 4, 4), origin=(0.5 * d, 0.5 * d, 0.5 * d), spacing=d, mass=1000.0 * d**3, radius=0.5 * d)
+        add_closed_box(b, 4 * d, 4 * d)
+
+    model = make_model(device, build, gravity=-9.81)
+    model.soft_contact_mu = 0.0
+    sim = Sim(model, substeps=8, contacts=True, fluid_rest_distance=d, fluid_coarse_correction=1.0)
+    sim.step(60)
+    q, v = sim.q(), sim.qd()
+    test.assertTrue(np.isfinite(q).all() and np.isfinite(v).all())
+    test.assertTrue(((q > 0.0) & (q < 4 * d)).all())
+    test.assertLess(np.abs(v).max(), 0.5)
+
+
+def test_coarse_correction_warns_about_dynamic_bodies(test, device):
+    """A scene with a floating body warns (the cells do not hold it); one with static walls only does not."""
+    with test.assertWarnsRegex(RuntimeWarning, "fluid_coarse_correction with 1 shapes of dynamic bodies"):
+        floating_box_sim(device, fluid_coarse_correction=0.5)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        column(device, n=2, layers=2, fluid_coarse_correction=0.5)
+
+
+def test_coarse_correction_step_is_captured(test, device):
+    """The step with the correction, captured in a CUDA graph, replays the eager step."""
+    eager = column(device, n=4, layers=12, fluid_coarse_correction=0.5)
+    graph = column(device, n=4, layers=12, fluid_coarse_correction=0.5)
+    with wp.ScopedCapture(device=device) as capture:
+        graph.step(1)
+    for _ in range(10):
+        wp.capture_launch(capture.graph)
+        eager.step(1)
+    np.testing.assert_allclose(graph.q(), eager.q(), atol=1.0e-4)
+
+
+class TestFluidCoarseCorrection(unittest.TestCase):
+    pass
+
+
+devices = get_test_devices()
+for _name, _func in list(globals().items()):
+    if _name.startswith("test_") and callable(_func):
+        add_function_test(
+            TestFluidCoarseCorrection,
+            _name,
+            _func,
+            devices=devices,
+        )
+
+
+if __name__ == "__main__":
+    unittest.main(verbosity=2)
