@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/archive/performance_notebook.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|box-runs|waves|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|box-runs|waves|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
 set -u
 out=${1:?output folder}; shift
 export PYTHONUNBUFFERED=1
@@ -189,6 +189,37 @@ for what in "$@"; do
       done
       unset FLUID_KERNEL_EXP
       git apply -R --include='newton/*' docs/archive/patches/one_kernel_polynomial.patch ;;
+    coarse-correction|coarse-correction-shape|coarse-correction-still)
+      # the solver's coarse density correction (fluid_coarse_correction; docs/validation.rst "Still water"). Today's
+      # kernel: its tests on CUDA and the 100k dam break's time per frame and density error without and with it.
+      # -shape, on (1 - r/h)^2.5 (one_kernel_polynomial.patch): the 100k and 1M dam breaks without and with it.
+      # -still, on that shape: the 100k pool and the 24- and 40-layer columns with it
+      tag=""
+      if [ $what != coarse-correction ]; then
+        git apply --include='newton/*' docs/archive/patches/one_kernel_polynomial.patch
+        export FLUID_KERNEL_EXP=2.5; tag=exponent_2.5_
+      else
+        python3 -m pytest -q -k cuda newton/tests/test_fluid_coarse_correction.py newton/tests/test_fluid_reset.py 2>&1 | tail -1
+      fi
+      if [ $what = coarse-correction-still ]; then
+        for size in 50x40 12x24 12x40; do
+          n=${size%x*}; l=${size#*x}
+          python3 -m benchmarks rest_column --device cuda:0 --n $n --layers $l --coarse-correction 0.5 \
+            --json "$out/rest_column_${n}x${n}x${l}_${tag}coarse_correction_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+        done
+      else
+        for v in "" "--coarse-correction 0.5"; do
+          t=${tag}${v:+coarse_correction_}
+          python3 -m benchmarks dam_break $v --trials 3 --json "$out/dam_break_100k_${t}${gpu}.json" 2>&1 \
+            | grep -A1 '^device' | tail -1
+          [ -n "$tag" ] && python3 -m benchmarks dam_break $v --particles 1000000 --warmup-frames 20 --frames 10 \
+            --trials 3 --json "$out/dam_break_1m_${t}${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+        done
+      fi
+      if [ -n "$tag" ]; then
+        unset FLUID_KERNEL_EXP
+        git apply -R --include='newton/*' docs/archive/patches/one_kernel_polynomial.patch
+      fi ;;
     box-runs)
       # the floating box of test_floating_box_comes_to_rest repeated at two non-affine dampings (its outcome on a GPU
       # changes from run to run; docs/validation.rst "Floating box"), and the 100k pool and dam break at each
