@@ -23,8 +23,8 @@ def column(device, n=6, layers=24, worlds=1, **solver_kwargs):
     """An ``n`` x ``n`` x ``layers`` column at rest in a closed frictionless box per world (worlds at one place), 8 x 2."""
     d = SPACING
 
-    def build(b):
-        add_block(b, (n, n, layers), origin=(0.5 * d, 0.5 * d, 0.5 * d), spacing=d, mass=1000.0 * d**3, radius=0.5 * d)
+    def build(b, depth=layers):
+        add_block(b, (n, n, depth), origin=(0.5 * d, 0.5 * d, 0.5 * d), spacing=d, mass=1000.0 * d**3, radius=0.5 * d)
         add_closed_box(b, n * d, 1.5 * layers * d)
 
     if worlds == 1:
@@ -34,15 +34,7 @@ def column(device, n=6, layers=24, worlds=1, **solver_kwargs):
         for w in range(worlds):
             world = newton.ModelBuilder(gravity=(0.0, 0.0, -9.81))
             # the worlds differ: each is a column of its own depth
-            add_block(
-                world,
-                (n, n, layers - 4 * w),
-                origin=(0.5 * d, 0.5 * d, 0.5 * d),
-                spacing=d,
-                mass=1000.0 * d**3,
-                radius=0.5 * d,
-            )
-            add_closed_box(world, n * d, 1.5 * layers * d)
+            build(world, layers - 4 * w)
             builder.add_world(world)
         model = builder.finalize(device=device)
     model.soft_contact_mu = 0.0

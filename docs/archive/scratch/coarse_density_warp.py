@@ -31,6 +31,7 @@ import numpy as np
 import warp as wp
 
 import newton
+from newton._src.solvers.xpbd.fluid.coarse_correction import cell_index, inside_box, trilinear_corner
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from run_around import run_around  # noqa: E402
@@ -47,26 +48,6 @@ ENABLED = [True]
 def cell_coordinates(x: wp.vec3, origin: wp.vec3, inv_cell: float) -> wp.vec3:
     """A position in cell units from the first cell's centre."""
     return (x - origin) * inv_cell - wp.vec3(0.5)
-
-
-@wp.func
-def trilinear_corner(s: wp.vec3, dims: wp.vec3i, corner: int):
-    """Flat index and trilinear weight of one of the 8 cell centres around ``s``; beyond a wall, the cell inside it."""
-    w = float(1.0)
-    c = int(0)
-    stride = int(1)
-    for axis in range(2, -1, -1):
-        low = int(wp.floor(s[axis]))
-        f = s[axis] - float(low)
-        o = (corner >> axis) & 1
-        i = wp.clamp(low + o, 0, dims[axis] - 1)
-        if o == 1:
-            w *= f
-        else:
-            w *= 1.0 - f
-        c += i * stride
-        stride *= dims[axis]
-    return c, w
 
 
 @wp.kernel
@@ -118,27 +99,17 @@ def mark_full_cells(
 
 
 @wp.func
-def flat_index(i: int, j: int, k: int, dims: wp.vec3i) -> int:
-    return (i * dims[1] + j) * dims[2] + k
-
-
-@wp.func
-def in_box(i: int, j: int, k: int, dims: wp.vec3i) -> bool:
-    return i >= 0 and i < dims[0] and j >= 0 and j < dims[1] and k >= 0 and k < dims[2]
-
-
-@wp.func
 def potential_or(phi: wp.array[float], i: int, j: int, k: int, dims: wp.vec3i, beyond: float) -> float:
     """The potential of cell ``(i, j, k)``, or ``beyond`` where that cell lies past a wall."""
-    if in_box(i, j, k, dims):
-        return phi[flat_index(i, j, k, dims)]
+    if inside_box(i, j, k, dims):
+        return phi[cell_index(i, j, k, dims)]
     return beyond
 
 
 @wp.func
 def open_face(i: int, j: int, k: int, dims: wp.vec3i) -> float:
     """1 where the neighbour ``(i, j, k)`` lies inside the box (flux passes), 0 past a wall."""
-    if in_box(i, j, k, dims):
+    if inside_box(i, j, k, dims):
         return 1.0
     return 0.0
 
