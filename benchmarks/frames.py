@@ -10,6 +10,7 @@ import argparse
 import warp as wp
 
 import newton
+from newton._src.solvers.xpbd.fluid.calibration import DENSITY_KERNELS
 from newton._src.solvers.xpbd.fluid.config import FLUID_KEYWORDS
 
 
@@ -55,6 +56,8 @@ class Frames:
 SOLVER_KEYWORDS = FLUID_KEYWORDS
 # keywords a scene sets from its spacing, not from a flag
 _SCENE_KEYWORDS = ("fluid_rest_distance", "fluid_smoothing_length")
+# the keywords that take one of a few names
+_CHOICES = {"fluid_density_kernel": DENSITY_KERNELS}
 
 
 def _dest(keyword: str) -> str:
@@ -106,6 +109,8 @@ def add_solver_arguments(
             group.add_argument(
                 solver_flag(name), action=argparse.BooleanOptionalAction, default=value, help=name + shown
             )
+        elif name in _CHOICES:
+            group.add_argument(solver_flag(name), choices=_CHOICES[name], default=value, help=name + shown)
         else:
             kind = int if isinstance(default, int) else float
             group.add_argument(solver_flag(name), type=kind, default=value, help=name + shown)

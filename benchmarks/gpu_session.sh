@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/archive/performance_notebook.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|box-runs|waves|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|box-runs|waves|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
 set -u
 out=${1:?output folder}; shift
 export PYTHONUNBUFFERED=1
@@ -8,6 +8,18 @@ nvidia-smi --query-gpu=name,driver_version,clocks.sm,clocks.max.sm --format=csv 
 # the GPU's model in the names of the files written (h100, h200, ...; "gpu" if not recognised)
 gpu=$(nvidia-smi --query-gpu=name --format=csv,noheader | head -1 | grep -oiE '[a-z]?[0-9]{2,4}[a-z]*' | head -1 | tr 'A-Z' 'a-z')
 gpu=${gpu:-gpu}
+# an archived patch on or off ($1 on|off, $2 its path). Patches written before fluid_density_kernel apply to the tree
+# without it: docs/archive/patches/density_kernel_keyword.patch is then taken off first and put back after
+keyword=docs/archive/patches/density_kernel_keyword.patch
+archived_patch() {
+  if [ "$1" = on ]; then
+    if ! git apply --check --include='newton/*' "$2" 2>/dev/null; then git apply -R "$keyword" && touch /tmp/keyword_off; fi
+    git apply --include='newton/*' "$2"
+  else
+    git apply -R --include='newton/*' "$2"
+    if [ -e /tmp/keyword_off ]; then git apply "$keyword" && rm /tmp/keyword_off; fi
+  fi
+}
 # the 100k dam break with a change ($1, a patch) on, taken off and put back, in one session; records tagged $2
 dam_break_without() {
   for v in after before after2; do
@@ -40,7 +52,7 @@ for what in "$@"; do
       # what moves in still water: the 100k pool split by scale and the floating box over time, today's solver and
       # with docs/archive/patches/one_kernel_density.patch (docs/archive/validation_notebook.md "What moves in still water")
       for patch in "" one_kernel_density; do
-        [ -n "$patch" ] && git apply "docs/archive/patches/$patch.patch"
+        [ -n "$patch" ] && archived_patch on "docs/archive/patches/$patch.patch"
         tag=${patch:-today}
         for v in "" "--iterations 4" "--substeps 16"; do
           echo "== pool $tag $v"
@@ -49,7 +61,7 @@ for what in "$@"; do
         done
         python3 docs/validation/floating_box/series.py cuda:0 10 > "$out/floating_box_series_${tag}_${gpu}.txt" 2>/dev/null
         tail -2 "$out/floating_box_series_${tag}_${gpu}.txt"
-        [ -n "$patch" ] && git apply -R "docs/archive/patches/$patch.patch"
+        [ -n "$patch" ] && archived_patch off "docs/archive/patches/$patch.patch"
       done ;;
     placement)
       # over-packed placements moved apart before they move (docs/archive/validation_notebook.md "Over-packed starts"):
@@ -103,7 +115,7 @@ for what in "$@"; do
     walls)
       # the walls' density by a box's edges and corners and in a tank's corner (docs/validation.rst "Where the method
       # fails"), the CUDA tests of the walls, and the 100k dam break with a change to the walls taken off and put
-      # back (WALLS_PATCH; the solid walls not adopted: git apply docs/archive/patches/solid_walls.patch first)
+      # back (WALLS_PATCH; the solid walls not adopted: archived_patch on docs/archive/patches/solid_walls.patch first)
       python3 docs/validation/walls/edge_density.py --device cuda:0 --json "$out/edge_density_${gpu}.json" 2>&1 | grep particles
       python3 -m pytest -q -k "cuda and (wall or edge or rest_lattice or archimedes or floats)" \
         newton/tests/test_solver_xpbd_fluid.py 2>&1 | tail -2
@@ -131,12 +143,12 @@ for what in "$@"; do
       # solver, then with docs/archive/patches/one_kernel_density.patch at 1.8 and 2.0 spacings
       r=docs/validation/floating_box/repeat_runs.py
       python3 $r --device cuda:0 --runs 12 --offset 1e-6 --json "$out/repeat_offsets_today_${gpu}.json" 2>&1 | grep '^damping'
-      git apply --include='newton/*' docs/archive/patches/one_kernel_density.patch
+      archived_patch on docs/archive/patches/one_kernel_density.patch
       for h in 1.8 2.0; do
         python3 $r --device cuda:0 --runs 12 --offset 1e-6 --smoothing-ratio $h \
           --json "$out/repeat_offsets_one_kernel_h${h}_${gpu}.json" 2>&1 | grep '^damping'
       done
-      git apply -R --include='newton/*' docs/archive/patches/one_kernel_density.patch ;;
+      archived_patch off docs/archive/patches/one_kernel_density.patch ;;
     kernel-shape)
       # one kernel of the shape (1 - r/h)^2.5 against today's solver (docs/archive/validation_notebook.md, "The kernel's
       # shape"; docs/archive/patches/one_kernel_polynomial.patch, FLUID_KERNEL_EXP), and spiky (exponent 3) for the
@@ -144,7 +156,7 @@ for what in "$@"; do
       # and the floating box's twelve starts
       r=docs/validation/floating_box/repeat_runs.py
       for v in today 2.5 3; do
-        if [ $v = 2.5 ]; then git apply --include='newton/*' docs/archive/patches/one_kernel_polynomial.patch; fi
+        if [ $v = 2.5 ]; then archived_patch on docs/archive/patches/one_kernel_polynomial.patch; fi
         [ $v != today ] && export FLUID_KERNEL_EXP=$v
         tag=${v/#[0-9]*/one_kernel_exponent_$v}
         echo "== $tag"
@@ -166,14 +178,14 @@ for what in "$@"; do
         python3 $r --device cuda:0 --runs 12 --offset 1e-6 --json "$out/repeat_offsets_${tag}_${gpu}.json" 2>&1 | grep '^damping'
       done
       unset FLUID_KERNEL_EXP
-      git apply -R --include='newton/*' docs/archive/patches/one_kernel_polynomial.patch ;;
+      archived_patch off docs/archive/patches/one_kernel_polynomial.patch ;;
     coarse-density)
       # the coarse density correction in Warp kernels (docs/archive/scratch/coarse_density_warp.py; docs/archive/
       # validation_notebook.md, "A coarse density correction against the ring") on the shape (1 - r/h)^2.5
       # (one_kernel_polynomial.patch): its cost per captured frame at 100k and 1M (cells of 3 and 5 spacings, 2 to 8
       # sweeps), the 100k pool and the 24- and 40-layer columns with it
       s=docs/archive/scratch/coarse_density_warp.py
-      git apply --include='newton/*' docs/archive/patches/one_kernel_polynomial.patch
+      archived_patch on docs/archive/patches/one_kernel_polynomial.patch
       export FLUID_KERNEL_EXP=2.5
       for c in 3:2 3:4 3:8 5:4; do
         COARSE_CELL=${c%:*} COARSE_SWEEPS=${c#*:} python3 $s --time 50 40 cuda:0 200 2>&1 | grep particles
@@ -188,7 +200,7 @@ for what in "$@"; do
           2>&1 | grep -A1 '^device' | tail -1
       done
       unset FLUID_KERNEL_EXP
-      git apply -R --include='newton/*' docs/archive/patches/one_kernel_polynomial.patch ;;
+      archived_patch off docs/archive/patches/one_kernel_polynomial.patch ;;
     coarse-correction|coarse-correction-shape|coarse-correction-still)
       # the solver's coarse density correction (fluid_coarse_correction; docs/validation.rst "Still water"). Today's
       # kernel: its tests on CUDA and the 100k dam break's time per frame and density error without and with it.
@@ -196,7 +208,7 @@ for what in "$@"; do
       # -still, on that shape: the 100k pool and the 24- and 40-layer columns with it
       tag=""
       if [ $what != coarse-correction ]; then
-        git apply --include='newton/*' docs/archive/patches/one_kernel_polynomial.patch
+        archived_patch on docs/archive/patches/one_kernel_polynomial.patch
         export FLUID_KERNEL_EXP=2.5; tag=exponent_2.5_
       else
         python3 -m pytest -q -k cuda newton/tests/test_fluid_coarse_correction.py newton/tests/test_fluid_reset.py 2>&1 | tail -1
@@ -218,8 +230,34 @@ for what in "$@"; do
       fi
       if [ -n "$tag" ]; then
         unset FLUID_KERNEL_EXP
-        git apply -R --include='newton/*' docs/archive/patches/one_kernel_polynomial.patch
+        archived_patch off docs/archive/patches/one_kernel_polynomial.patch
       fi ;;
+    density-kernel)
+      # fluid_density_kernel (docs/performance.rst, docs/validation.rst "Still water"): the 100k and 1M dam breaks before
+      # the keyword existed (docs/archive/patches/density_kernel_keyword.patch taken off), with it at "poly6", with
+      # "one_kernel", and with "one_kernel" and the coarse correction
+      for v in before poly6 one_kernel one_kernel_coarse_correction; do
+        flags=""
+        [ $v = one_kernel ] && flags="--density-kernel one_kernel"
+        [ $v = one_kernel_coarse_correction ] && flags="--density-kernel one_kernel --coarse-correction 0.5"
+        [ $v = before ] && git apply -R docs/archive/patches/density_kernel_keyword.patch
+        python3 -m benchmarks dam_break $flags --trials 3 --json "$out/dam_break_100k_kernel_${v}_${gpu}.json" 2>&1 \
+          | grep -A1 '^device' | tail -1
+        python3 -m benchmarks dam_break $flags --particles 1000000 --warmup-frames 20 --frames 10 --trials 3 \
+          --json "$out/dam_break_1m_kernel_${v}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+        [ $v = before ] && git apply docs/archive/patches/density_kernel_keyword.patch
+      done ;;
+    density-kernel-still)
+      # its tests and the coarse correction's on CUDA; the 100k pool and the 24- and 40-layer columns with
+      # "one_kernel" and the coarse correction
+      python3 -m pytest -q -k cuda newton/tests/test_fluid_density_kernel.py newton/tests/test_fluid_coarse_correction.py \
+        2>&1 | tail -1
+      for size in 50x40 12x24 12x40; do
+        n=${size%x*}; l=${size#*x}
+        python3 -m benchmarks rest_column --device cuda:0 --n $n --layers $l --density-kernel one_kernel \
+          --coarse-correction 0.5 --json "$out/rest_column_${n}x${n}x${l}_one_kernel_coarse_correction_${gpu}.json" 2>&1 \
+          | grep -A1 '^device' | tail -1
+      done ;;
     box-runs)
       # the floating box of test_floating_box_comes_to_rest repeated at two non-affine dampings (its outcome on a GPU
       # changes from run to run; docs/validation.rst "Floating box"), and the 100k pool and dam break at each

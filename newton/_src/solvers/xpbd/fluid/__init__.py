@@ -72,7 +72,7 @@ def _diffuse_property(field: str, doc: str):
 def fluid_diagnostics(self, state) -> dict:
     """Density and neighbourhood statistics of the fluid at ``state``.
 
-    Recomputes the neighbourhood and the poly6 density at ``state.particle_q`` (so it reads the
+    Recomputes the neighbourhood and the density at ``state.particle_q`` (so it reads the
     result of the last step, not a value from inside it) and synchronises with the device: call it
     when you need the numbers, not in the hot loop. Also fills :attr:`fluid_density`. Warns
     (``RuntimeWarning``) when the mean compression exceeds 5 %, more than the density solve holds
@@ -289,7 +289,7 @@ _FLUID_DOC = """
             fluid_smoothing_length: Kernel support radius h [m], in (rest distance, 4 x rest distance].
                 Defaults to 1.8 x ``fluid_rest_distance``.
             fluid_rest_density: Rest density of a particle of the mean fluid mass [kg/m^3], > 0 (one of mass ``m``
-                has ``m / mean`` times it). Defaults to the poly6 density of the cubic lattice at the rest distance.
+                has ``m / mean`` times it). Defaults to the density kernel's sum on the cubic lattice at the rest distance.
             fluid_cohesion: Strength of the Akinci pair cohesion of under-dense pairs [dimensionless], in [0, 1].
                 Defaults to 0.
             fluid_viscosity: Blend toward the neighbourhood velocity per substep [dimensionless], in [0, 1].
@@ -327,6 +327,11 @@ _FLUID_DOC = """
                 measured choice. Defaults to 0.
             fluid_coarse_cell: Edge of the coarse correction's cells [rest distances], in [1, 16], set at
                 construction. Defaults to 3.
+            fluid_density_kernel: The density constraint's kernel (str), set at construction: ``"poly6"`` sums the
+                poly6 kernel and moves along the spiky kernel's gradient (Macklin & Müller 2013); ``"one_kernel"``
+                sums ``(1 - r/h)^2.5``, normalised so the rest lattice reads ``m / d^3``, and moves along its own
+                gradient: still water churns less, and with ``fluid_coarse_correction`` it rests. Defaults to
+                ``"poly6"``.
 """
 
 

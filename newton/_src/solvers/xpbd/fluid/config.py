@@ -9,6 +9,7 @@ import math
 import numbers
 from dataclasses import dataclass
 
+from .calibration import DENSITY_KERNELS
 from .walls import WALL_CONTACTS_PER_SLOT
 
 # smoothing length h = DEFAULT_SMOOTHING_RATIO * rest distance unless given
@@ -106,6 +107,7 @@ class FluidConfig:
     fluid_relax_overpacked: bool = True
     fluid_coarse_correction: float = 0.0
     fluid_coarse_cell: float = DEFAULT_COARSE_CELL
+    fluid_density_kernel: str = "poly6"
 
     #: parameters that may change after construction (they live on the device)
     MUTABLE = (
@@ -141,6 +143,11 @@ class FluidConfig:
         self.max_diffuse_particles = count_in_range("max_diffuse_particles", self.max_diffuse_particles, 2**31 - 1)
         self.fluid_coarse_correction = real_in_range("fluid_coarse_correction", self.fluid_coarse_correction, 0.0, 1.0)
         self.fluid_coarse_cell = real_in_range("fluid_coarse_cell", self.fluid_coarse_cell, 1.0, 16.0)
+        if not isinstance(self.fluid_density_kernel, str) or self.fluid_density_kernel not in DENSITY_KERNELS:
+            raise ValueError(
+                f"fluid_density_kernel={self.fluid_density_kernel!r} is invalid: expected one of "
+                + ", ".join(repr(k) for k in DENSITY_KERNELS)
+            )
         for name in ("fluid_continuous_collision", "fluid_relax_overpacked"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name}={getattr(self, name)!r} is invalid: expected True or False")

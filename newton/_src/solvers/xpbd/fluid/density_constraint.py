@@ -3,10 +3,15 @@
 
 """The density constraint of position-based fluids: density, multiplier, correction, cohesion, warm start.
 
-One Jacobi pass is :func:`compute_fluid_density_lambda` (poly6 density and the multiplier of the
+One Jacobi pass is :func:`compute_fluid_density_lambda` (the density and the multiplier of the
 unilateral constraint ``C_i = max(rho_i / rho0 - 1, 0)``, Macklin & Müller 2013, eq. 1-11) then
 :func:`apply_fluid_density_correction` (``dx_i = 1/rho0 sum_j (lambda_i + lambda_j) grad W_ij``, eq. 12,
 with Akinci's cohesion as a bias), over the fluid slots (:mod:`.sph`).
+
+The density is the poly6 sum and the correction moves along the spiky kernel's gradient, as Macklin &
+Müller's; or, with ``fluid_density_kernel="one_kernel"``, both come from the one kernel ``(1 - r/h)^2.5``:
+the correction is then the gradient of the constraint it corrects (docs/formulation.rst, "The density
+kernel").
 """
 
 import warp as wp
@@ -15,11 +20,12 @@ from .sph import (
     FluidParams,
     FluidSlots,
     akinci_cohesion,
+    density_kernel_slope,
     neighbor_sum,
+    one_kernel,
     pair_direction,
     pair_share,
     poly6,
-    spiky_gradient,
 )
 from .walls import fluid_wall_share
 
@@ -89,8 +95,15 @@ def density_term(slots: FluidSlots, j: int, me: DensitySlot, p: FluidParams):
     r2 = wp.dot(r, r)
     if r2 >= p.h2:
         return vec5(0.0)
-    g = spiky_gradient(r, r2, me.particle, slots.particle, j, p) * (p.reference_mass * p.inv_rest_density)
-    return vec5(g[0], g[1], g[2], p.reference_mass * poly6(r2, p), wp.dot(g, g))
+    dist = wp.sqrt(r2)
+    n = pair_direction(r, dist, me.particle, slots.particle, j, p)
+    d = p.h - dist
+    g = n * density_kernel_slope(d, p) * (p.reference_mass * p.inv_rest_density)
+    if p.one_kernel != 0:
+        w = one_kernel(d / p.h, p)
+    else:
+        w = poly6(r2, p)
+    return vec5(g[0], g[1], g[2], p.reference_mass * w, wp.dot(g, g))
 
 
 density_sum = neighbor_sum(density_term, pairwise=True)
@@ -136,7 +149,7 @@ def correction_term(
     n = pair_direction(r, dist, pi, sorted_particle, j, p)
     d = p.h - dist
     share = pair_share(xi4, xj4)
-    dx = n * (p.spiky_grad * d * d * (lam_i + lam_j) * p.reference_mass * p.inv_rest_density * share)
+    dx = n * (density_kernel_slope(d, p) * (lam_i + lam_j) * p.reference_mass * p.inv_rest_density * share)
     coh = wp.vec3(0.0)
     if p.cohesion > 0.0:
         coh = n * (-share * cohesion * akinci_cohesion(dist, p))
@@ -217,7 +230,7 @@ def compute_fluid_density_lambda(
     compression_bins: wp.array[float],
     peaks: wp.array[float],
 ):
-    """Poly6 density and the Jacobi multiplier of the unilateral constraint C = max(rho/rho0 - 1, 0).
+    """Density and the Jacobi multiplier of the unilateral constraint C = max(rho/rho0 - 1, 0).
 
     The static walls listed for the slot add their share of ``rho / rho0`` (:func:`fluid_wall_share`);
     its gradient is kept in ``wall_grad`` for the correction. Does nothing while ``active[0]`` is 0.
@@ -234,7 +247,10 @@ def compute_fluid_density_lambda(
     p = params[0]
     xi4 = slots.xm[i]
     xi = wp.vec3(xi4[0], xi4[1], xi4[2])
-    rho = p.reference_mass * poly6(0.0, p)
+    w_self = poly6(0.0, p)
+    if p.one_kernel != 0:
+        w_self = p.one_kernel_scale
+    rho = p.reference_mass * w_self
     me = DensitySlot()
     me.x = xi
     me.particle = pi

@@ -20,7 +20,16 @@ import numpy as np
 import warp as wp
 
 from ....geometry import ParticleFlags
-from .calibration import WALL_TABLE_SIZE, lattice_density, rest_lattice, stable_relaxation, wall_density_tables
+from .calibration import (
+    ONE_KERNEL_EXPONENT,
+    WALL_TABLE_SIZE,
+    lattice_density,
+    one_kernel_scale,
+    rest_gradient_sq,
+    rest_lattice,
+    stable_relaxation,
+    wall_density_tables,
+)
 from .config import (
     AFFINE_REGULARIZER,
     AKINCI_ZERO,
@@ -112,15 +121,12 @@ class FluidSolver:
         h = config.fluid_smoothing_length
         masses = model.particle_mass.numpy()[fluid_particle]
         self.mean_mass = float(masses.mean())
-        lattice = rest_lattice(d, h)
-        self.rest_lattice_neighbors = len(lattice) - 1
-        r2 = np.einsum("ij,ij->i", lattice, lattice)
-        #: rest density of a regular lattice at the rest distance under the poly6 sum [kg/m^3]
-        self.lattice_density = lattice_density(d, h, self.mean_mass)
-        # sum |grad C|^2 of a lattice particle at rest (the self term vanishes by symmetry)
-        r = np.sqrt(r2[r2 > 0.0])
-        grad = 45.0 / (math.pi * h**6) * (h - r) ** 2 * (self.mean_mass / self.lattice_density)
-        self.rest_grad_sq = float((grad * grad).sum())
+        kernel = config.fluid_density_kernel
+        self.rest_lattice_neighbors = len(rest_lattice(d, h)) - 1
+        #: rest density of a regular lattice at the rest distance under the density kernel's sum [kg/m^3]
+        self.lattice_density = lattice_density(d, h, self.mean_mass, kernel)
+        # sum |grad C|^2 of a lattice particle at rest, grad C = m / rho0 grad W
+        self.rest_grad_sq = rest_gradient_sq(d, h, self.mean_mass / self.lattice_density, kernel)
         # the density passes a substep may run: one per iteration, or with a tolerance any count from
         # one (the XPBD iterations stop) or ``iterations`` (sub-passes) up to the most allowed
         if config.fluid_max_iterations > 1:
@@ -130,7 +136,7 @@ class FluidSolver:
         else:
             fewest, most = iterations, iterations
         #: the relaxation in use while ``fluid_relaxation`` is None (see :func:`stable_relaxation`)
-        self.default_relaxation = stable_relaxation(d, h, fewest, most)
+        self.default_relaxation = stable_relaxation(d, h, fewest, most, kernel)
 
         if config.fluid_max_neighbors > 0:
             capacity, capped = config.fluid_max_neighbors, True
@@ -198,7 +204,7 @@ class FluidSolver:
             self.subiterations_total = wp.zeros(1, dtype=wp.int32)
             # gradient of the static walls' share of rho / rho0 per slot, from the density pass to the correction
             self.wall_grad = wp.zeros(n, dtype=wp.vec3)
-            wall_rho, wall_drho = wall_density_tables(d, h, self.mean_mass)
+            wall_rho, wall_drho = wall_density_tables(d, h, self.mean_mass, kernel=kernel)
             self.wall_table = wp.array(wall_rho / self.lattice_density, dtype=float)
             self.wall_table_grad = wp.array(wall_drho / self.lattice_density, dtype=float)
             self.last_finite_q = wp.array(model.particle_q.numpy()[fluid_particle], dtype=wp.vec3)
@@ -307,6 +313,9 @@ class FluidSolver:
         p.h2 = h * h
         p.poly6 = 315.0 / (64.0 * math.pi * h**9)
         p.spiky_grad = -45.0 / (math.pi * h**6)
+        p.one_kernel = int(c.fluid_density_kernel == "one_kernel")
+        p.one_kernel_scale = one_kernel_scale(d, h)
+        p.one_kernel_slope = ONE_KERNEL_EXPONENT * p.one_kernel_scale / h
         p.rest_density = self.rest_density
         p.inv_rest_density = 1.0 / self.rest_density
         p.reference_mass = self.mean_mass
