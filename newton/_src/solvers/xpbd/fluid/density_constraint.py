@@ -14,18 +14,21 @@ the correction is then the gradient of the constraint it corrects (docs/formulat
 kernel").
 """
 
+import functools
+
 import warp as wp
 
 from .sph import (
     FluidParams,
     FluidSlots,
     akinci_cohesion,
-    density_kernel_slope,
     neighbor_sum,
     one_kernel,
+    one_kernel_slope,
     pair_direction,
     pair_share,
     poly6,
+    spiky_slope,
 )
 from .walls import fluid_wall_share
 
@@ -84,32 +87,6 @@ class DensitySlot:
 
 
 @wp.func
-def density_term(slots: FluidSlots, j: int, me: DensitySlot, p: FluidParams):
-    """Neighbour ``j``'s share of slot ``i``'s constraint: ``(grad C_i w.r.t. x_j, m W_ij, its gradient squared)``.
-
-    Zero beyond ``h``. ``m`` is the reference mass, not ``m_j``: the constraint is on the number density,
-    so that a particle's rest density is in proportion to its own mass and fluids of different density mix.
-    """
-    xj4 = slots.xm[j]
-    r = me.x - wp.vec3(xj4[0], xj4[1], xj4[2])
-    r2 = wp.dot(r, r)
-    if r2 >= p.h2:
-        return vec5(0.0)
-    dist = wp.sqrt(r2)
-    n = pair_direction(r, dist, me.particle, slots.particle, j, p)
-    d = p.h - dist
-    g = n * density_kernel_slope(d, p) * (p.reference_mass * p.inv_rest_density)
-    if p.one_kernel != 0:
-        w = one_kernel(d / p.h, p)
-    else:
-        w = poly6(r2, p)
-    return vec5(g[0], g[1], g[2], p.reference_mass * w, wp.dot(g, g))
-
-
-density_sum = neighbor_sum(density_term, pairwise=True)
-
-
-@wp.func
 def cohesion_weight(rel_i: float, rel_j: float, p: FluidParams):
     """Share of the cohesion a pair takes, from the pair's relative densities ``rho / rho0``.
 
@@ -123,39 +100,6 @@ def cohesion_weight(rel_i: float, rel_j: float, p: FluidParams):
     return wp.clamp(under / p.cohesion_gate, 0.0, 1.0)
 
 
-@wp.func
-def correction_term(
-    xi4: wp.vec4,
-    lam_i: float,
-    xj4: wp.vec4,
-    lam_j: float,
-    pi: int,
-    sorted_particle: wp.array[wp.int32],
-    j: int,
-    p: FluidParams,
-    cohesion: float,
-):
-    """Neighbour ``j``'s density correction (top) and its cohesion pull (bottom) on slot ``i``.
-
-    The pull is weighted by ``cohesion`` (the pair's share, :func:`cohesion_weight`) and not yet scaled
-    by the strength. It is evaluated for every pair while cohesion is on, also where the share is 0:
-    a branch on the share diverges within a warp (measured 0.01 ms per frame slower at 100k, 0.05 ms at 1M).
-    """
-    r = wp.vec3(xi4[0] - xj4[0], xi4[1] - xj4[1], xi4[2] - xj4[2])
-    r2 = wp.dot(r, r)
-    if r2 >= p.h2:
-        return wp.spatial_vector(wp.vec3(0.0), wp.vec3(0.0))
-    dist = wp.sqrt(r2)
-    n = pair_direction(r, dist, pi, sorted_particle, j, p)
-    d = p.h - dist
-    share = pair_share(xi4, xj4)
-    dx = n * (density_kernel_slope(d, p) * (lam_i + lam_j) * p.reference_mass * p.inv_rest_density * share)
-    coh = wp.vec3(0.0)
-    if p.cohesion > 0.0:
-        coh = n * (-share * cohesion * akinci_cohesion(dist, p))
-    return wp.spatial_vector(dx, coh)
-
-
 @wp.struct
 class CorrectionSlot:
     """What a neighbour's correction term needs of slot ``i``."""
@@ -167,17 +111,6 @@ class CorrectionSlot:
     lambda_rho: wp.array[wp.vec2]  # every slot's multiplier and relative density
 
 
-@wp.func
-def density_correction_term(slots: FluidSlots, j: int, me: CorrectionSlot, p: FluidParams):
-    """:func:`correction_term` of neighbour ``j`` with this iteration's multipliers and the pair's cohesion share."""
-    lr = me.lambda_rho[j]
-    c = cohesion_weight(me.rel, lr[1], p)
-    return correction_term(me.xm, me.lam, slots.xm[j], lr[0], me.particle, slots.particle, j, p, c)
-
-
-density_correction_sum = neighbor_sum(density_correction_term)
-
-
 @wp.struct
 class WarmStartSlot:
     """What a neighbour's warm-start term needs of slot ``i``."""
@@ -186,17 +119,6 @@ class WarmStartSlot:
     lam: float  # carried multiplier
     particle: int  # particle index
     warm_lambda: wp.array[float]  # every slot's carried multiplier
-
-
-@wp.func
-def warm_start_term(slots: FluidSlots, j: int, me: WarmStartSlot, p: FluidParams):
-    """The density correction of neighbour ``j`` with the carried multipliers alone: no cohesion."""
-    return wp.spatial_top(
-        correction_term(me.xm, me.lam, slots.xm[j], me.warm_lambda[j], me.particle, slots.particle, j, p, 0.0)
-    )
-
-
-warm_start_sum = neighbor_sum(warm_start_term)
 
 
 @wp.kernel
@@ -212,72 +134,6 @@ def gather_fluid_positions(
         return
     x = particle_q[pi]
     slots.xm[i] = wp.vec4(x[0], x[1], x[2], particle_mass[pi])
-
-
-@wp.kernel
-def compute_fluid_density_lambda(
-    params: wp.array[FluidParams],
-    slots: FluidSlots,
-    active: wp.array[wp.int32],
-    wall_table: wp.array[float],
-    wall_table_grad: wp.array[float],
-    track_compression: int,
-    track_peaks: int,
-    # outputs
-    density: wp.array[float],
-    lambda_rho: wp.array[wp.vec2],
-    wall_grad: wp.array[wp.vec3],
-    compression_bins: wp.array[float],
-    peaks: wp.array[float],
-):
-    """Density and the Jacobi multiplier of the unilateral constraint C = max(rho/rho0 - 1, 0).
-
-    The static walls listed for the slot add their share of ``rho / rho0`` (:func:`fluid_wall_share`);
-    its gradient is kept in ``wall_grad`` for the correction. Does nothing while ``active[0]`` is 0.
-    With ``track_compression``, also sums max(rho/rho0 - 1, 0) into ``compression_bins[0, B)`` and
-    counts the particles in ``[B, 2B)`` (``B = COMPRESSION_BINS``, spreading the atomics). With
-    ``track_peaks`` (a substep's last pass), counts the particles compressed by more than
-    ``PEAK_COMPRESSION`` into ``peaks[0, B)`` and keeps their largest compression in ``peaks[B, 2B)``,
-    until :meth:`~.solver_fluid.FluidSolver.diagnostics` reads and clears them.
-    """
-    i = wp.tid()
-    pi = slots.particle[i]
-    if pi < 0 or active[0] == 0:
-        return
-    p = params[0]
-    xi4 = slots.xm[i]
-    xi = wp.vec3(xi4[0], xi4[1], xi4[2])
-    w_self = poly6(0.0, p)
-    if p.one_kernel != 0:
-        w_self = p.one_kernel_scale
-    rho = p.reference_mass * w_self
-    me = DensitySlot()
-    me.x = xi
-    me.particle = pi
-    # the sum starts from the particle's own share
-    t = density_sum(slots, i, me, p, vec5(0.0, 0.0, 0.0, rho, 0.0))
-    rho = t[3]
-    grad_i = wp.vec3(t[0], t[1], t[2])
-    grad_sq = t[4]
-    # the walls do not move: their gradient only adds to the particle's own
-    wall = fluid_wall_share(slots, i, xi, p, wall_table, wall_table_grad)
-    wall_g = wp.vec3(wall[0], wall[1], wall[2])
-    rho += wall[3] * p.rest_density
-    grad_i += wall_g
-    wall_grad[i] = wall_g
-    density[i] = rho
-    # the multiplier and the relative density, which the correction reads for each neighbour
-    lambda_rho[i] = wp.vec2(density_constraint_lambda(rho, grad_i, grad_sq, p), rho * p.inv_rest_density)
-    if track_compression != 0:
-        b = i % COMPRESSION_BINS
-        wp.atomic_add(compression_bins, b, wp.max(rho * p.inv_rest_density - 1.0, 0.0))
-        wp.atomic_add(compression_bins, COMPRESSION_BINS + b, 1.0)
-    if track_peaks != 0:
-        c = rho * p.inv_rest_density - 1.0
-        if c > PEAK_COMPRESSION:
-            b = i % COMPRESSION_BINS
-            wp.atomic_add(peaks, b, 1.0)
-            wp.atomic_max(peaks, COMPRESSION_BINS + b, c)
 
 
 @wp.func
@@ -334,132 +190,6 @@ def applied_particles(apply: ParticleApply, particle_deltas: wp.array[wp.vec3]):
 
 
 @wp.kernel
-def apply_fluid_density_correction(
-    params: wp.array[FluidParams],
-    slots: FluidSlots,
-    active: wp.array[wp.int32],
-    lambda_rho: wp.array[wp.vec2],
-    particle_inv_mass: wp.array[float],
-    wall_grad: wp.array[wp.vec3],
-    apply: ParticleApply,
-    store_warm: int,
-    # outputs
-    particle_deltas: wp.array[wp.vec3],
-    lambda_sum: wp.array[float],
-    particle_lambda: wp.array[float],
-):
-    """Add the density correction and the cohesion bias of slot ``i`` to its particle's Jacobi delta.
-
-    Each pair takes the share of the cohesion :func:`cohesion_weight` gives it.
-
-    ``wall_grad`` is the walls' gradient of the density pass before it. With ``apply.on``, the
-    corrected position goes to ``apply.xm`` (see :class:`ParticleApply`). With the warm start, the
-    multiplier is added to the substep's sum ``lambda_sum``; with ``store_warm`` (the substep's last
-    correction), ``warm_start`` times that sum is kept in ``particle_lambda`` for the next substep
-    (as :func:`store_fluid_warm_start` does, without a pass of its own).
-    """
-    i = wp.tid()
-    pi = slots.particle[i]
-    if pi < 0 or active[0] == 0:
-        return
-    xi4 = slots.xm[i]
-    p = params[0]
-    if particle_inv_mass[pi] == 0.0:
-        if store_warm != 0 and p.warm_start > 0.0:
-            particle_lambda[pi] = p.warm_start * lambda_sum[i]
-        if apply.on == APPLY_AS_XPBD:
-            x, v = applied_particle(apply, pi, particle_deltas[pi])
-            apply.xm[i] = wp.vec4(x[0], x[1], x[2], xi4[3])
-            apply.v[i] = v
-        elif apply.on == APPLY_ADVANCE:
-            apply.xm[i] = xi4
-        return
-    lr_i = lambda_rho[i]
-    lam_i = lr_i[0]
-    rel_i = lr_i[1]
-    wall_g = wall_grad[i]
-    me = CorrectionSlot()
-    me.xm = xi4
-    me.lam = lam_i
-    me.rel = rel_i
-    me.particle = pi
-    me.lambda_rho = lambda_rho
-    acc = density_correction_sum(slots, i, me, p, wp.spatial_vector(wp.vec3(0.0), wp.vec3(0.0)))
-    dx = wp.spatial_top(acc) + wall_g * lam_i
-    coh = wp.spatial_bottom(acc)
-    dx = relaxed_correction(dx, p)
-    if p.cohesion > 0.0:
-        # the bias is bounded so a crowded neighbourhood cannot pull harder than one rest spacing allows
-        coh *= p.cohesion
-        coh_len = wp.length(coh)
-        coh_max = 4.0 * p.cohesion
-        if coh_len > coh_max:
-            coh *= coh_max / coh_len
-        dx += coh
-    delta = particle_deltas[pi] + dx
-    particle_deltas[pi] = delta
-    if p.warm_start > 0.0:
-        lam_sum = lambda_sum[i] + lam_i
-        lambda_sum[i] = lam_sum
-        if store_warm != 0:
-            particle_lambda[pi] = p.warm_start * lam_sum
-    if apply.on == APPLY_AS_XPBD:
-        x, v = applied_particle(apply, pi, delta)
-        apply.xm[i] = wp.vec4(x[0], x[1], x[2], xi4[3])
-        apply.v[i] = v
-    elif apply.on == APPLY_ADVANCE:
-        apply.xm[i] = wp.vec4(xi4[0] + dx[0], xi4[1] + dx[1], xi4[2] + dx[2], xi4[3])
-
-
-@wp.kernel
-def apply_fluid_warm_start(
-    params: wp.array[FluidParams],
-    slots: FluidSlots,
-    active: wp.array[wp.int32],
-    warm_lambda: wp.array[float],
-    particle_inv_mass: wp.array[float],
-    wall_table: wp.array[float],
-    wall_table_grad: wp.array[float],
-    # outputs
-    particle_deltas: wp.array[wp.vec3],
-    moved_xm: wp.array[wp.vec4],
-    lambda_sum: wp.array[float],
-):
-    """Start the substep's density solve from the multipliers of the last one (warm start).
-
-    Moves slot ``i`` by the correction of the carried multipliers ``warm_lambda`` (gathered into slot
-    order by the sort, :meth:`~.neighbors.FluidNeighborSearch.carry_values`; as
-    :func:`apply_fluid_density_correction` does with fresh ones, without cohesion) before the first
-    density evaluation, writing the moved position to ``moved_xm`` (the other position buffer: the
-    neighbours' positions are read from ``slots.xm`` meanwhile): a load the fluid carried last
-    substep, like the weight of a deep column, is already held when the iterations start, which then
-    only correct what changed. Starts the substep's sum of multipliers from the carried one.
-    """
-    i = wp.tid()
-    pi = slots.particle[i]
-    if pi < 0:
-        return
-    xi4 = slots.xm[i]
-    lam_i = warm_lambda[i]
-    lambda_sum[i] = lam_i
-    p = params[0]
-    if active[0] == 0 or p.warm_start <= 0.0 or particle_inv_mass[pi] == 0.0:
-        moved_xm[i] = xi4
-        return
-    xi = wp.vec3(xi4[0], xi4[1], xi4[2])
-    wall = fluid_wall_share(slots, i, xi, p, wall_table, wall_table_grad)
-    me = WarmStartSlot()
-    me.xm = xi4
-    me.lam = lam_i
-    me.particle = pi
-    me.warm_lambda = warm_lambda
-    dx = warm_start_sum(slots, i, me, p, wp.vec3(wall[0], wall[1], wall[2]) * lam_i)
-    dx = relaxed_correction(dx, p)
-    particle_deltas[pi] = particle_deltas[pi] + dx
-    moved_xm[i] = wp.vec4(xi[0] + dx[0], xi[1] + dx[1], xi[2] + dx[2], xi4[3])
-
-
-@wp.kernel
 def store_fluid_warm_start(
     params: wp.array[FluidParams],
     slots: FluidSlots,
@@ -481,3 +211,343 @@ def store_fluid_warm_start(
     if pi < 0:
         return
     particle_lambda[pi] = p.warm_start * lambda_sum[i]
+
+
+class DensityPasses:
+    """The density constraint's passes compiled for one ``fluid_density_kernel`` (see :func:`density_passes`).
+
+    Attributes:
+        compute_lambda: The kernel of the density and the multipliers.
+        apply_correction: The kernel of the Jacobi correction.
+        apply_warm_start: The kernel of the warm start's correction.
+        pair_weight: ``wp.func`` ``W(r2, d, p)`` of the density sum, at ``r2 = |r|^2`` and ``d = h - |r|`` [1/m^3].
+        pair_slope: ``wp.func`` ``dW/d|r| (d, p)`` the correction moves along [1/m^4].
+        density_correction_sum: ``wp.func`` summing the correction and cohesion over a slot's neighbours
+            (:class:`CorrectionSlot`), for other passes that move along the constraint's gradient.
+        suffix: What the choice's kernel names end with ("" for ``"poly6"``).
+    """
+
+    def __init__(
+        self,
+        compute_lambda,
+        apply_correction,
+        apply_warm_start,
+        pair_weight,
+        pair_slope,
+        density_correction_sum,
+        suffix,
+    ):
+        self.compute_lambda = compute_lambda
+        self.apply_correction = apply_correction
+        self.apply_warm_start = apply_warm_start
+        self.pair_weight = pair_weight
+        self.pair_slope = pair_slope
+        self.density_correction_sum = density_correction_sum
+        self.suffix = suffix
+
+
+def _named(fn, suffix: str):
+    """``fn`` renamed with ``suffix``: each kernel choice's functions and kernels get keys of their own."""
+    fn.__name__ = fn.__qualname__ = fn.__name__ + suffix
+    return fn
+
+
+@functools.cache
+def density_passes(kernel: str) -> DensityPasses:
+    """The density passes with ``kernel``'s density and gradient (``"poly6"`` or ``"one_kernel"``) compiled in.
+
+    ``"poly6"``: the poly6 sum moved along the spiky gradient (Macklin & Müller 2013); ``"one_kernel"``:
+    ``c (1 - r/h)^2.5`` and its own gradient. The choice is made when the code is generated
+    (``wp.static``), not per pair: a branch on it in the pair terms cost the 1M dam break 3.6 % of its frame
+    with poly6 (one H200, ``bash benchmarks/gpu_session.sh OUT density-kernel``), and the kernels of a
+    choice a scene does not make are not compiled. The ``"poly6"`` kernels keep their names.
+    """
+    one = kernel == "one_kernel"
+    suffix = "_one_kernel" if one else ""
+
+    def pair_weight(r2: float, d: float, p: FluidParams):
+        if wp.static(one):
+            return one_kernel(d / p.h, p)
+        return poly6(r2, p)
+
+    def pair_slope(d: float, p: FluidParams):
+        if wp.static(one):
+            return one_kernel_slope(d / p.h, p)
+        return spiky_slope(d, p)
+
+    def self_weight(p: FluidParams):
+        """A particle's own ``W(0)`` [1/m^3]."""
+        if wp.static(one):
+            return p.one_kernel_scale
+        return poly6(0.0, p)
+
+    pair_weight = wp.func(_named(pair_weight, suffix))
+    pair_slope = wp.func(_named(pair_slope, suffix))
+    self_weight = wp.func(_named(self_weight, suffix))
+
+    def density_term(slots: FluidSlots, j: int, me: DensitySlot, p: FluidParams):
+        """Neighbour ``j``'s share of slot ``i``'s constraint: ``(grad C_i w.r.t. x_j, m W_ij, its gradient squared)``.
+
+        Zero beyond ``h``. ``m`` is the reference mass, not ``m_j``: the constraint is on the number density,
+        so that a particle's rest density is in proportion to its own mass and fluids of different density mix.
+        """
+        xj4 = slots.xm[j]
+        r = me.x - wp.vec3(xj4[0], xj4[1], xj4[2])
+        r2 = wp.dot(r, r)
+        if r2 >= p.h2:
+            return vec5(0.0)
+        dist = wp.sqrt(r2)
+        n = pair_direction(r, dist, me.particle, slots.particle, j, p)
+        d = p.h - dist
+        g = n * wp.static(pair_slope)(d, p) * (p.reference_mass * p.inv_rest_density)
+        w = wp.static(pair_weight)(r2, d, p)
+        return vec5(g[0], g[1], g[2], p.reference_mass * w, wp.dot(g, g))
+
+    density_term = wp.func(_named(density_term, suffix))
+    density_sum = neighbor_sum(density_term, pairwise=True)
+
+    def correction_term(
+        xi4: wp.vec4,
+        lam_i: float,
+        xj4: wp.vec4,
+        lam_j: float,
+        pi: int,
+        sorted_particle: wp.array[wp.int32],
+        j: int,
+        p: FluidParams,
+        cohesion: float,
+    ):
+        """Neighbour ``j``'s density correction (top) and its cohesion pull (bottom) on slot ``i``.
+
+        The pull is weighted by ``cohesion`` (the pair's share, :func:`cohesion_weight`) and not yet scaled
+        by the strength. It is evaluated for every pair while cohesion is on, also where the share is 0:
+        a branch on the share diverges within a warp (measured 0.01 ms per frame slower at 100k, 0.05 ms at 1M).
+        """
+        r = wp.vec3(xi4[0] - xj4[0], xi4[1] - xj4[1], xi4[2] - xj4[2])
+        r2 = wp.dot(r, r)
+        if r2 >= p.h2:
+            return wp.spatial_vector(wp.vec3(0.0), wp.vec3(0.0))
+        dist = wp.sqrt(r2)
+        n = pair_direction(r, dist, pi, sorted_particle, j, p)
+        d = p.h - dist
+        share = pair_share(xi4, xj4)
+        dx = n * (wp.static(pair_slope)(d, p) * (lam_i + lam_j) * p.reference_mass * p.inv_rest_density * share)
+        coh = wp.vec3(0.0)
+        if p.cohesion > 0.0:
+            coh = n * (-share * cohesion * akinci_cohesion(dist, p))
+        return wp.spatial_vector(dx, coh)
+
+    correction_term = wp.func(_named(correction_term, suffix))
+
+    def density_correction_term(slots: FluidSlots, j: int, me: CorrectionSlot, p: FluidParams):
+        """:func:`correction_term` of neighbour ``j`` with this iteration's multipliers and the pair's cohesion share."""
+        lr = me.lambda_rho[j]
+        c = cohesion_weight(me.rel, lr[1], p)
+        return wp.static(correction_term)(me.xm, me.lam, slots.xm[j], lr[0], me.particle, slots.particle, j, p, c)
+
+    density_correction_term = wp.func(_named(density_correction_term, suffix))
+    density_correction_sum = neighbor_sum(density_correction_term)
+
+    def warm_start_term(slots: FluidSlots, j: int, me: WarmStartSlot, p: FluidParams):
+        """The density correction of neighbour ``j`` with the carried multipliers alone: no cohesion."""
+        return wp.spatial_top(
+            wp.static(correction_term)(
+                me.xm, me.lam, slots.xm[j], me.warm_lambda[j], me.particle, slots.particle, j, p, 0.0
+            )
+        )
+
+    warm_start_term = wp.func(_named(warm_start_term, suffix))
+    warm_start_sum = neighbor_sum(warm_start_term)
+
+    def compute_fluid_density_lambda(
+        params: wp.array[FluidParams],
+        slots: FluidSlots,
+        active: wp.array[wp.int32],
+        wall_table: wp.array[float],
+        wall_table_grad: wp.array[float],
+        track_compression: int,
+        track_peaks: int,
+        # outputs
+        density: wp.array[float],
+        lambda_rho: wp.array[wp.vec2],
+        wall_grad: wp.array[wp.vec3],
+        compression_bins: wp.array[float],
+        peaks: wp.array[float],
+    ):
+        """Density and the Jacobi multiplier of the unilateral constraint C = max(rho/rho0 - 1, 0).
+
+        The static walls listed for the slot add their share of ``rho / rho0`` (:func:`fluid_wall_share`);
+        its gradient is kept in ``wall_grad`` for the correction. Does nothing while ``active[0]`` is 0.
+        With ``track_compression``, also sums max(rho/rho0 - 1, 0) into ``compression_bins[0, B)`` and
+        counts the particles in ``[B, 2B)`` (``B = COMPRESSION_BINS``, spreading the atomics). With
+        ``track_peaks`` (a substep's last pass), counts the particles compressed by more than
+        ``PEAK_COMPRESSION`` into ``peaks[0, B)`` and keeps their largest compression in ``peaks[B, 2B)``,
+        until :meth:`~.solver_fluid.FluidSolver.diagnostics` reads and clears them.
+        """
+        i = wp.tid()
+        pi = slots.particle[i]
+        if pi < 0 or active[0] == 0:
+            return
+        p = params[0]
+        xi4 = slots.xm[i]
+        xi = wp.vec3(xi4[0], xi4[1], xi4[2])
+        rho = p.reference_mass * wp.static(self_weight)(p)
+        me = DensitySlot()
+        me.x = xi
+        me.particle = pi
+        # the sum starts from the particle's own share
+        t = wp.static(density_sum)(slots, i, me, p, vec5(0.0, 0.0, 0.0, rho, 0.0))
+        rho = t[3]
+        grad_i = wp.vec3(t[0], t[1], t[2])
+        grad_sq = t[4]
+        # the walls do not move: their gradient only adds to the particle's own
+        wall = fluid_wall_share(slots, i, xi, p, wall_table, wall_table_grad)
+        wall_g = wp.vec3(wall[0], wall[1], wall[2])
+        rho += wall[3] * p.rest_density
+        grad_i += wall_g
+        wall_grad[i] = wall_g
+        density[i] = rho
+        # the multiplier and the relative density, which the correction reads for each neighbour
+        lambda_rho[i] = wp.vec2(density_constraint_lambda(rho, grad_i, grad_sq, p), rho * p.inv_rest_density)
+        if track_compression != 0:
+            b = i % COMPRESSION_BINS
+            wp.atomic_add(compression_bins, b, wp.max(rho * p.inv_rest_density - 1.0, 0.0))
+            wp.atomic_add(compression_bins, COMPRESSION_BINS + b, 1.0)
+        if track_peaks != 0:
+            c = rho * p.inv_rest_density - 1.0
+            if c > PEAK_COMPRESSION:
+                b = i % COMPRESSION_BINS
+                wp.atomic_add(peaks, b, 1.0)
+                wp.atomic_max(peaks, COMPRESSION_BINS + b, c)
+
+    def apply_fluid_density_correction(
+        params: wp.array[FluidParams],
+        slots: FluidSlots,
+        active: wp.array[wp.int32],
+        lambda_rho: wp.array[wp.vec2],
+        particle_inv_mass: wp.array[float],
+        wall_grad: wp.array[wp.vec3],
+        apply: ParticleApply,
+        store_warm: int,
+        # outputs
+        particle_deltas: wp.array[wp.vec3],
+        lambda_sum: wp.array[float],
+        particle_lambda: wp.array[float],
+    ):
+        """Add the density correction and the cohesion bias of slot ``i`` to its particle's Jacobi delta.
+
+        Each pair takes the share of the cohesion :func:`cohesion_weight` gives it.
+
+        ``wall_grad`` is the walls' gradient of the density pass before it. With ``apply.on``, the
+        corrected position goes to ``apply.xm`` (see :class:`ParticleApply`). With the warm start, the
+        multiplier is added to the substep's sum ``lambda_sum``; with ``store_warm`` (the substep's last
+        correction), ``warm_start`` times that sum is kept in ``particle_lambda`` for the next substep
+        (as :func:`store_fluid_warm_start` does, without a pass of its own).
+        """
+        i = wp.tid()
+        pi = slots.particle[i]
+        if pi < 0 or active[0] == 0:
+            return
+        xi4 = slots.xm[i]
+        p = params[0]
+        if particle_inv_mass[pi] == 0.0:
+            if store_warm != 0 and p.warm_start > 0.0:
+                particle_lambda[pi] = p.warm_start * lambda_sum[i]
+            if apply.on == APPLY_AS_XPBD:
+                x, v = applied_particle(apply, pi, particle_deltas[pi])
+                apply.xm[i] = wp.vec4(x[0], x[1], x[2], xi4[3])
+                apply.v[i] = v
+            elif apply.on == APPLY_ADVANCE:
+                apply.xm[i] = xi4
+            return
+        lr_i = lambda_rho[i]
+        lam_i = lr_i[0]
+        rel_i = lr_i[1]
+        wall_g = wall_grad[i]
+        me = CorrectionSlot()
+        me.xm = xi4
+        me.lam = lam_i
+        me.rel = rel_i
+        me.particle = pi
+        me.lambda_rho = lambda_rho
+        acc = wp.static(density_correction_sum)(slots, i, me, p, wp.spatial_vector(wp.vec3(0.0), wp.vec3(0.0)))
+        dx = wp.spatial_top(acc) + wall_g * lam_i
+        coh = wp.spatial_bottom(acc)
+        dx = relaxed_correction(dx, p)
+        if p.cohesion > 0.0:
+            # the bias is bounded so a crowded neighbourhood cannot pull harder than one rest spacing allows
+            coh *= p.cohesion
+            coh_len = wp.length(coh)
+            coh_max = 4.0 * p.cohesion
+            if coh_len > coh_max:
+                coh *= coh_max / coh_len
+            dx += coh
+        delta = particle_deltas[pi] + dx
+        particle_deltas[pi] = delta
+        if p.warm_start > 0.0:
+            lam_sum = lambda_sum[i] + lam_i
+            lambda_sum[i] = lam_sum
+            if store_warm != 0:
+                particle_lambda[pi] = p.warm_start * lam_sum
+        if apply.on == APPLY_AS_XPBD:
+            x, v = applied_particle(apply, pi, delta)
+            apply.xm[i] = wp.vec4(x[0], x[1], x[2], xi4[3])
+            apply.v[i] = v
+        elif apply.on == APPLY_ADVANCE:
+            apply.xm[i] = wp.vec4(xi4[0] + dx[0], xi4[1] + dx[1], xi4[2] + dx[2], xi4[3])
+
+    def apply_fluid_warm_start(
+        params: wp.array[FluidParams],
+        slots: FluidSlots,
+        active: wp.array[wp.int32],
+        warm_lambda: wp.array[float],
+        particle_inv_mass: wp.array[float],
+        wall_table: wp.array[float],
+        wall_table_grad: wp.array[float],
+        # outputs
+        particle_deltas: wp.array[wp.vec3],
+        moved_xm: wp.array[wp.vec4],
+        lambda_sum: wp.array[float],
+    ):
+        """Start the substep's density solve from the multipliers of the last one (warm start).
+
+        Moves slot ``i`` by the correction of the carried multipliers ``warm_lambda`` (gathered into slot
+        order by the sort, :meth:`~.neighbors.FluidNeighborSearch.carry_values`; as
+        :func:`apply_fluid_density_correction` does with fresh ones, without cohesion) before the first
+        density evaluation, writing the moved position to ``moved_xm`` (the other position buffer: the
+        neighbours' positions are read from ``slots.xm`` meanwhile): a load the fluid carried last
+        substep, like the weight of a deep column, is already held when the iterations start, which then
+        only correct what changed. Starts the substep's sum of multipliers from the carried one.
+        """
+        i = wp.tid()
+        pi = slots.particle[i]
+        if pi < 0:
+            return
+        xi4 = slots.xm[i]
+        lam_i = warm_lambda[i]
+        lambda_sum[i] = lam_i
+        p = params[0]
+        if active[0] == 0 or p.warm_start <= 0.0 or particle_inv_mass[pi] == 0.0:
+            moved_xm[i] = xi4
+            return
+        xi = wp.vec3(xi4[0], xi4[1], xi4[2])
+        wall = fluid_wall_share(slots, i, xi, p, wall_table, wall_table_grad)
+        me = WarmStartSlot()
+        me.xm = xi4
+        me.lam = lam_i
+        me.particle = pi
+        me.warm_lambda = warm_lambda
+        dx = wp.static(warm_start_sum)(slots, i, me, p, wp.vec3(wall[0], wall[1], wall[2]) * lam_i)
+        dx = relaxed_correction(dx, p)
+        particle_deltas[pi] = particle_deltas[pi] + dx
+        moved_xm[i] = wp.vec4(xi[0] + dx[0], xi[1] + dx[1], xi[2] + dx[2], xi4[3])
+
+    return DensityPasses(
+        wp.kernel(_named(compute_fluid_density_lambda, suffix)),
+        wp.kernel(_named(apply_fluid_density_correction, suffix)),
+        wp.kernel(_named(apply_fluid_warm_start, suffix)),
+        pair_weight,
+        pair_slope,
+        density_correction_sum,
+        suffix,
+    )

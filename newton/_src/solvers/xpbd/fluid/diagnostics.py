@@ -87,7 +87,7 @@ class FluidReports:
         #: particle substeps that ended faster than one rest distance per substep, in all (one int32)
         self.fast_count = wp.zeros(1, dtype=wp.int32)
         #: particles past PEAK_COMPRESSION in a substep's last density pass, and their peak, per bin
-        #: (see :func:`~.density_constraint.compute_fluid_density_lambda`)
+        #: (see :func:`~.density_constraint.density_passes`)
         self.peaks = wp.zeros(2 * COMPRESSION_BINS, dtype=float)
         #: density of every particle at the state of the last summary [kg/m^3] (0 for non-fluid)
         self.particle_density = wp.zeros(particle_count, dtype=float)

@@ -44,6 +44,8 @@ builds sort with :mod:`.prefix_sum` (a body may not allocate). What was found is
 device and reported, with a warning, by the next ``fluid_diagnostics`` call.
 """
 
+import functools
+
 import warp as wp
 
 from ....geometry import ParticleFlags
@@ -55,7 +57,7 @@ from .continuous_collision import (
     shape_poses,
     world_row,
 )
-from .density_constraint import CorrectionSlot, density_correction_sum, relaxed_correction
+from .density_constraint import CorrectionSlot, density_passes, relaxed_correction
 from .sph import FluidParams, FluidSlots
 from .walls import WALL_CONTACTS_PER_SLOT
 
@@ -225,87 +227,94 @@ def path_end_outside_shapes(
     return x1
 
 
-@wp.kernel
-def relax_overpacked_fluid(
-    params: wp.array[FluidParams],
-    slots: FluidSlots,
-    lambda_rho: wp.array[wp.vec2],
-    wall_grad: wp.array[wp.vec3],
-    fluid_particle: wp.array[wp.int32],
-    slot_of_particle: wp.array[wp.int32],
-    particle_flags: wp.array[wp.int32],
-    particle_world: wp.array[wp.int32],
-    particle_radius: wp.array[float],
-    particle_inv_mass: wp.array[float],
-    world_count: int,
-    relaxing: wp.array[wp.int32],
-    any_relaxing: wp.array[wp.int32],
-    shapes: GuardedShapes,
-    guarded: int,
-    guard_rounds: int,
-    # outputs
-    particle_q: wp.array[wp.vec3],
-    last_finite_q: wp.array[wp.vec3],
-    moved_xm: wp.array[wp.vec4],
-):
-    """Move a relaxing world's fluid particle by its density correction ``1/rho0 sum_j (lambda_i + lambda_j) grad W_ij``.
+@functools.cache
+def relaxation_kernel(kernel: str):
+    """:func:`relax_overpacked_fluid` moving along the density constraint's gradient of ``kernel`` (``fluid_density_kernel``)."""
+    passes = density_passes(kernel)
 
-    The correction of one Jacobi pass (the walls' share included), bounded as in a step, applied to the
-    position alone and kept out of the shapes. Over fluid index ``k`` (``last_finite_q`` is in that
-    order), reading the slots' positions, so every particle moves from the same configuration; every
-    slot's position after the pass goes to ``moved_xm`` for the next pass.
-    """
-    k = wp.tid()
-    if any_relaxing[0] == 0:
-        return
-    pi = fluid_particle[k]
-    i = slot_of_particle[pi]
-    if i < 0:
-        return
-    xm = slots.xm[i]
-    moved_xm[i] = xm
-    w = particle_world[pi]
-    if relaxing[world_row(w, world_count)] == 0:
-        return
-    if (particle_flags[pi] & ParticleFlags.ACTIVE) == 0 or particle_inv_mass[pi] == 0.0:
-        return
-    p = params[0]
-    lr = lambda_rho[i]
-    me = CorrectionSlot()
-    me.xm = xm
-    me.lam = lr[0]
-    me.rel = lr[1]
-    me.particle = pi
-    me.lambda_rho = lambda_rho
-    zero = wp.spatial_vector(wp.vec3(0.0), wp.vec3(0.0))
-    dx = wp.spatial_top(density_correction_sum(slots, i, me, p, zero)) + wall_grad[i] * me.lam
-    dx = relaxed_correction(dx, p)
-    x0 = wp.vec3(xm[0], xm[1], xm[2])
-    # the heavy ball: the last pass's move carried on, so a long wave (the whole block spreading)
-    # converges in about as many passes as it is wide, not as its square; only while the particle is
-    # compressed (the unilateral constraint has nothing to stop a move carried past rest density)
-    x1 = x0 + dx
-    if lr[1] > 1.0:
-        x1 += RELAXATION_MOMENTUM * (x0 - last_finite_q[k])
-    radius = particle_radius[pi]
-    if guarded != 0:
-        row = world_row(w, shapes.world_count)
-        lo = shapes.row_start[row]
-        hi = shapes.row_start[row + 1]
-        if lo < hi:
-            x1 = path_end_outside_shapes(shapes, lo, hi, x0, x1, radius, guard_rounds)
-        # a radius off every wall listed for the slot, as the step's contacts will hold it
-        n = slots.particle.shape[0]
-        for t in range(wp.min(slots.wall_count[i], WALL_CONTACTS_PER_SLOT)):
-            plane = slots.wall_plane[t * n + i]
-            normal = wp.vec3(plane[0], plane[1], plane[2])
-            gap = wp.dot(normal, x1) - plane[3]
-            if gap < radius:
-                x1 += (radius - gap) * normal
-    particle_q[pi] = x1
-    # (the position before the move, which the next pass's heavy ball reads; a finite one for the recovery)
-    last_finite_q[k] = x0
-    moved_xm[i] = wp.vec4(x1[0], x1[1], x1[2], xm[3])
+    def relax_overpacked_fluid(
+        params: wp.array[FluidParams],
+        slots: FluidSlots,
+        lambda_rho: wp.array[wp.vec2],
+        wall_grad: wp.array[wp.vec3],
+        fluid_particle: wp.array[wp.int32],
+        slot_of_particle: wp.array[wp.int32],
+        particle_flags: wp.array[wp.int32],
+        particle_world: wp.array[wp.int32],
+        particle_radius: wp.array[float],
+        particle_inv_mass: wp.array[float],
+        world_count: int,
+        relaxing: wp.array[wp.int32],
+        any_relaxing: wp.array[wp.int32],
+        shapes: GuardedShapes,
+        guarded: int,
+        guard_rounds: int,
+        # outputs
+        particle_q: wp.array[wp.vec3],
+        last_finite_q: wp.array[wp.vec3],
+        moved_xm: wp.array[wp.vec4],
+    ):
+        """Move a relaxing world's fluid particle by its density correction ``1/rho0 sum_j (lambda_i + lambda_j) grad W_ij``.
+
+        The correction of one Jacobi pass (the walls' share included), bounded as in a step, applied to the
+        position alone and kept out of the shapes. Over fluid index ``k`` (``last_finite_q`` is in that
+        order), reading the slots' positions, so every particle moves from the same configuration; every
+        slot's position after the pass goes to ``moved_xm`` for the next pass.
+        """
+        k = wp.tid()
+        if any_relaxing[0] == 0:
+            return
+        pi = fluid_particle[k]
+        i = slot_of_particle[pi]
+        if i < 0:
+            return
+        xm = slots.xm[i]
+        moved_xm[i] = xm
+        w = particle_world[pi]
+        if relaxing[world_row(w, world_count)] == 0:
+            return
+        if (particle_flags[pi] & ParticleFlags.ACTIVE) == 0 or particle_inv_mass[pi] == 0.0:
+            return
+        p = params[0]
+        lr = lambda_rho[i]
+        me = CorrectionSlot()
+        me.xm = xm
+        me.lam = lr[0]
+        me.rel = lr[1]
+        me.particle = pi
+        me.lambda_rho = lambda_rho
+        zero = wp.spatial_vector(wp.vec3(0.0), wp.vec3(0.0))
+        dx = wp.spatial_top(wp.static(passes.density_correction_sum)(slots, i, me, p, zero)) + wall_grad[i] * me.lam
+        dx = relaxed_correction(dx, p)
+        x0 = wp.vec3(xm[0], xm[1], xm[2])
+        # the heavy ball: the last pass's move carried on, so a long wave (the whole block spreading)
+        # converges in about as many passes as it is wide, not as its square; only while the particle is
+        # compressed (the unilateral constraint has nothing to stop a move carried past rest density)
+        x1 = x0 + dx
+        if lr[1] > 1.0:
+            x1 += RELAXATION_MOMENTUM * (x0 - last_finite_q[k])
+        radius = particle_radius[pi]
+        if guarded != 0:
+            row = world_row(w, shapes.world_count)
+            lo = shapes.row_start[row]
+            hi = shapes.row_start[row + 1]
+            if lo < hi:
+                x1 = path_end_outside_shapes(shapes, lo, hi, x0, x1, radius, guard_rounds)
+            # a radius off every wall listed for the slot, as the step's contacts will hold it
+            n = slots.particle.shape[0]
+            for t in range(wp.min(slots.wall_count[i], WALL_CONTACTS_PER_SLOT)):
+                plane = slots.wall_plane[t * n + i]
+                normal = wp.vec3(plane[0], plane[1], plane[2])
+                gap = wp.dot(normal, x1) - plane[3]
+                if gap < radius:
+                    x1 += (radius - gap) * normal
+        particle_q[pi] = x1
+        # (the position before the move, which the next pass's heavy ball reads; a finite one for the recovery)
+        last_finite_q[k] = x0
+        moved_xm[i] = wp.vec4(x1[0], x1[1], x1[2], xm[3])
+
+    relax_overpacked_fluid.__name__ = relax_overpacked_fluid.__qualname__ = "relax_overpacked_fluid" + passes.suffix
+    return wp.kernel(relax_overpacked_fluid)
 
 
 @wp.kernel

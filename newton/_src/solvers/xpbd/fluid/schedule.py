@@ -20,7 +20,7 @@ wp.set_module_options({"fast_math": True})
 
 @wp.func
 def take_compression(bins: wp.array[float]):
-    """Total compression and particle count of the compression bins (see :func:`compute_fluid_density_lambda`).
+    """Total compression and particle count of the compression bins (see :func:`~.density_constraint.density_passes`).
 
     Clears the bins for the next evaluation. Called by every thread of one block: the bins are summed
     as tiles (a tree over the block, where one thread's loop over them took about 10 us on an H100).

@@ -51,9 +51,7 @@ from .density_constraint import (
     APPLY_AS_XPBD,
     COMPRESSION_SUMS,
     ParticleApply,
-    apply_fluid_density_correction,
-    apply_fluid_warm_start,
-    compute_fluid_density_lambda,
+    density_passes,
     gather_fluid_positions,
     store_fluid_warm_start,
 )
@@ -77,7 +75,7 @@ from .placement import (
     list_shape_walls,
     mark_placed_worlds,
     refresh_relaxed_contacts,
-    relax_overpacked_fluid,
+    relaxation_kernel,
 )
 from .render_particles import compute_fluid_render_particles, reset_render_particles
 from .reset import reset_diffuse_worlds, reset_fluid_worlds
@@ -122,6 +120,8 @@ class FluidSolver:
         masses = model.particle_mass.numpy()[fluid_particle]
         self.mean_mass = float(masses.mean())
         kernel = config.fluid_density_kernel
+        #: the density constraint's passes compiled for the kernel
+        self.passes = density_passes(kernel)
         self.rest_lattice_neighbors = len(rest_lattice(d, h)) - 1
         #: rest density of a regular lattice at the rest distance under the density kernel's sum [kg/m^3]
         self.lattice_density = lattice_density(d, h, self.mean_mass, kernel)
@@ -200,7 +200,7 @@ class FluidSolver:
             self.tolerance_mode = config.fluid_max_iterations > 1 or config.fluid_density_tolerance > 0.0
             self.compression_bins = wp.zeros(COMPRESSION_SUMS, dtype=float)
             # particles past PEAK_COMPRESSION in a substep's last density pass, and their peak, per bin:
-            # kept on the device between two diagnostics calls (see compute_fluid_density_lambda)
+            # kept on the device between two diagnostics calls (see density_constraint.density_passes)
             self.subiterations_total = wp.zeros(1, dtype=wp.int32)
             # gradient of the static walls' share of rho / rho0 per slot, from the density pass to the correction
             self.wall_grad = wp.zeros(n, dtype=wp.vec3)
@@ -313,7 +313,6 @@ class FluidSolver:
         p.h2 = h * h
         p.poly6 = 315.0 / (64.0 * math.pi * h**9)
         p.spiky_grad = -45.0 / (math.pi * h**6)
-        p.one_kernel = int(c.fluid_density_kernel == "one_kernel")
         p.one_kernel_scale = one_kernel_scale(d, h)
         p.one_kernel_slope = ONE_KERNEL_EXPONENT * p.one_kernel_scale / h
         p.rest_density = self.rest_density
@@ -481,7 +480,7 @@ class FluidSolver:
         """
         m, n = self.model, self.fluid_count
         wp.launch(
-            apply_fluid_warm_start,
+            self.passes.apply_warm_start,
             dim=n,
             inputs=[
                 self.params,
@@ -519,7 +518,7 @@ class FluidSolver:
             applied.xm = self._slot_views[1 - self.current].xm
             applied.v = self.sorted_v
         wp.launch(
-            apply_fluid_density_correction,
+            self.passes.apply_correction,
             dim=self.fluid_count,
             inputs=[
                 self.params,
@@ -542,7 +541,7 @@ class FluidSolver:
         next report.
         """
         wp.launch(
-            compute_fluid_density_lambda,
+            self.passes.compute_lambda,
             dim=self.fluid_count,
             inputs=[
                 self.params,
@@ -921,7 +920,7 @@ class FluidSolver:
             if k > 0:
                 self.evaluate_constraint(self.any_relaxing)
             wp.launch(
-                relax_overpacked_fluid,
+                relaxation_kernel(self.config.fluid_density_kernel),
                 dim=self.fluid_count,
                 inputs=[
                     self.params,

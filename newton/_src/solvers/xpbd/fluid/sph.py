@@ -51,7 +51,6 @@ class FluidParams:
     h2: float
     poly6: float  # 315 / (64 pi h^9)
     spiky_grad: float  # -45 / (pi h^6)
-    one_kernel: int  # 1: the density constraint sums the one kernel and moves along its gradient; 0: poly6 and spiky
     one_kernel_scale: float  # W(0) of the one kernel c (1 - r/h)^2.5, normalised on the rest lattice [1/m^3]
     one_kernel_slope: float  # 2.5 c / h: -dW/dr = one_kernel_slope (1 - r/h)^1.5 [1/m^4]
     rest_density: float  # of a particle of the reference mass [kg/m^3]
@@ -122,15 +121,14 @@ def one_kernel(q: float, p: FluidParams):
 
 
 @wp.func
-def density_kernel_slope(d: float, p: FluidParams):
-    """``dW/d|r|`` of the density constraint's gradient at ``d = h - |r|`` in [0, h] [1/m^4]: ``grad_i W = slope r / |r|``.
+def one_kernel_slope(q: float, p: FluidParams):
+    """``dW/d|r|`` of the one kernel at ``q = 1 - |r|/h`` in [0, 1]: ``-2.5 c / h q^1.5`` [1/m^4]."""
+    return -p.one_kernel_slope * q * wp.sqrt(q)
 
-    The spiky kernel's ``-45 / (pi h^6) d^2`` beside poly6 (Macklin & Müller 2013), or the one kernel's own
-    ``-2.5 c / h q^1.5``.
-    """
-    if p.one_kernel != 0:
-        q = d / p.h
-        return -p.one_kernel_slope * q * wp.sqrt(q)
+
+@wp.func
+def spiky_slope(d: float, p: FluidParams):
+    """``dW/d|r|`` of the spiky kernel at ``d = h - |r|`` in [0, h]: ``-45 / (pi h^6) d^2`` [1/m^4]."""
     return p.spiky_grad * d * d
 
 
