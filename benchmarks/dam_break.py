@@ -248,6 +248,7 @@ def run(args) -> dict:
         "fluid_continuous_collision": solver.fluid_continuous_collision,
         "fluid_coarse_correction": solver.fluid_coarse_correction,
         "fluid_coarse_cell": solver.fluid_coarse_cell,
+        "fluid_density_kernel": solver.fluid_density_kernel,
         "terrain_bump_spacings": args.terrain_bump,
         "shape_entries_stopped": stats["shape_entries_stopped"],
         "cuda_graph": graph is not None,

@@ -211,6 +211,7 @@ def run(args, device) -> dict:
         "warm_start": solver.fluid_warm_start,
         "coarse_correction": solver.fluid_coarse_correction,
         "coarse_cell": solver.fluid_coarse_cell,
+        "density_kernel": solver.fluid_density_kernel,
         "smoothing_length_m": solver.fluid_smoothing_length,
         "nonaffine_damping": damping,
         "settle_s": args.settle,
