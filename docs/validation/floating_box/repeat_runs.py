@@ -11,7 +11,8 @@ run ``k``'s box ``k x offset`` [m] off centre at its start. ``--smoothing-ratio 
 to ``R`` spacings (with ``docs/archive/patches/one_kernel_density.patch`` applied: the one-kernel solver's box).
 Run from the repository root:
 ``python docs/validation/floating_box/repeat_runs.py --device cuda:0 --runs 6 --damping 0.05 0.1 0.15 0.2 --json F``,
-``python docs/validation/floating_box/repeat_runs.py --device cpu --runs 30 --offset 1e-6 --json F``.
+``python docs/validation/floating_box/repeat_runs.py --device cpu --runs 30 --offset 1e-6 --json F``;
+``--density-kernel one_kernel --coarse-correction 0.5`` sets those keywords.
 """
 
 import argparse
@@ -38,6 +39,8 @@ def main():
         default=None,
         help="fluid_smoothing_length over the spacing (default: the solver's)",
     )
+    parser.add_argument("--density-kernel", default=None, help="fluid_density_kernel (default: the solver's)")
+    parser.add_argument("--coarse-correction", type=float, default=None, help="fluid_coarse_correction (default: off)")
     parser.add_argument("--json", default=None)
     args = parser.parse_args()
     wp.config.quiet = True
@@ -46,9 +49,15 @@ def main():
         "device": device.name if device.is_cuda else "cpu",
         "offset_m": args.offset,
         "smoothing_ratio": args.smoothing_ratio,
+        "density_kernel": args.density_kernel,
+        "coarse_correction": args.coarse_correction,
         "runs": {},
     }
     extra = {} if args.smoothing_ratio is None else {"fluid_smoothing_length": args.smoothing_ratio * BOX_SPACING}
+    if args.density_kernel is not None:
+        extra["fluid_density_kernel"] = args.density_kernel
+    if args.coarse_correction is not None:
+        extra["fluid_coarse_correction"] = args.coarse_correction
     for damping in args.damping:
         rows = []
         for k in track(range(args.runs), f"damping {damping}", unit="run"):
