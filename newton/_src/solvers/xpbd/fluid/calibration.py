@@ -14,6 +14,7 @@ density is ``m / d^3``; docs/formulation.rst, "The density kernel").
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -44,10 +45,12 @@ def one_kernel_shape(r: np.ndarray, h: float) -> np.ndarray:
     return np.maximum(1.0 - r / h, 0.0) ** ONE_KERNEL_EXPONENT
 
 
+@functools.cache
 def one_kernel_scale(rest_distance: float, h: float) -> float:
     """Factor [1/m^3] on :func:`one_kernel_shape` that makes the rest lattice's kernel sum ``1 / d^3``.
 
-    So water of particle mass ``1000 d^3`` rests at 1000 kg/m^3, as the cubic lattice it starts from.
+    So water of particle mass ``1000 d^3`` rests at 1000 kg/m^3, as the cubic lattice it starts from. Kept
+    per ``(d, h)``: the wall tables and the other calibrations ask for it at every sample.
     """
     lattice = rest_lattice(rest_distance, h)
     r = np.sqrt(np.einsum("ij,ij->i", lattice, lattice))
@@ -180,6 +183,7 @@ def wall_density_tables(
     for i, delta in enumerate(deltas):
         z = delta + 0.5 * d + np.arange(n + 1) * d
         if kernel == "poly6":
+            # (poly6's own sum in r^2, as before the kernel could be chosen: its tables stay bitwise the same)
             k = 315.0 / (64.0 * math.pi * h**9)
             q = np.maximum(h * h - plane[None, :] - z[:, None] ** 2, 0.0)
             rho[i] = mass * k * (q**3).sum()

@@ -3,10 +3,11 @@
 
 """The density constraint of position-based fluids: density, multiplier, correction, cohesion, warm start.
 
-One Jacobi pass is :func:`compute_fluid_density_lambda` (the density and the multiplier of the
+One Jacobi pass is ``compute_fluid_density_lambda`` (the density and the multiplier of the
 unilateral constraint ``C_i = max(rho_i / rho0 - 1, 0)``, Macklin & Müller 2013, eq. 1-11) then
-:func:`apply_fluid_density_correction` (``dx_i = 1/rho0 sum_j (lambda_i + lambda_j) grad W_ij``, eq. 12,
-with Akinci's cohesion as a bias), over the fluid slots (:mod:`.sph`).
+``apply_fluid_density_correction`` (``dx_i = 1/rho0 sum_j (lambda_i + lambda_j) grad W_ij``, eq. 12,
+with Akinci's cohesion as a bias), over the fluid slots (:mod:`.sph`); both are compiled per kernel
+choice by :func:`density_passes`.
 
 The density is the poly6 sum and the correction moves along the spiky kernel's gradient, as Macklin &
 Müller's; or, with ``fluid_density_kernel="one_kernel"``, both come from the one kernel ``(1 - r/h)^2.5``:
@@ -14,7 +15,9 @@ the correction is then the gradient of the constraint it corrects (docs/formulat
 kernel").
 """
 
+import dataclasses
 import functools
+from typing import Any
 
 import warp as wp
 
@@ -213,6 +216,7 @@ def store_fluid_warm_start(
     particle_lambda[pi] = p.warm_start * lambda_sum[i]
 
 
+@dataclasses.dataclass(frozen=True)
 class DensityPasses:
     """The density constraint's passes compiled for one ``fluid_density_kernel`` (see :func:`density_passes`).
 
@@ -224,29 +228,19 @@ class DensityPasses:
         pair_slope: ``wp.func`` ``dW/d|r| (d, p)`` the correction moves along [1/m^4].
         density_correction_sum: ``wp.func`` summing the correction and cohesion over a slot's neighbours
             (:class:`CorrectionSlot`), for other passes that move along the constraint's gradient.
-        suffix: What the choice's kernel names end with ("" for ``"poly6"``).
+        suffix: What the choice's kernel names end with ("" for ``"poly6"``; see :func:`named_variant`).
     """
 
-    def __init__(
-        self,
-        compute_lambda,
-        apply_correction,
-        apply_warm_start,
-        pair_weight,
-        pair_slope,
-        density_correction_sum,
-        suffix,
-    ):
-        self.compute_lambda = compute_lambda
-        self.apply_correction = apply_correction
-        self.apply_warm_start = apply_warm_start
-        self.pair_weight = pair_weight
-        self.pair_slope = pair_slope
-        self.density_correction_sum = density_correction_sum
-        self.suffix = suffix
+    compute_lambda: Any
+    apply_correction: Any
+    apply_warm_start: Any
+    pair_weight: Any
+    pair_slope: Any
+    density_correction_sum: Any
+    suffix: str
 
 
-def _named(fn, suffix: str):
+def named_variant(fn, suffix: str):
     """``fn`` renamed with ``suffix``: each kernel choice's functions and kernels get keys of their own."""
     fn.__name__ = fn.__qualname__ = fn.__name__ + suffix
     return fn
@@ -281,9 +275,9 @@ def density_passes(kernel: str) -> DensityPasses:
             return p.one_kernel_scale
         return poly6(0.0, p)
 
-    pair_weight = wp.func(_named(pair_weight, suffix))
-    pair_slope = wp.func(_named(pair_slope, suffix))
-    self_weight = wp.func(_named(self_weight, suffix))
+    pair_weight = wp.func(named_variant(pair_weight, suffix))
+    pair_slope = wp.func(named_variant(pair_slope, suffix))
+    self_weight = wp.func(named_variant(self_weight, suffix))
 
     def density_term(slots: FluidSlots, j: int, me: DensitySlot, p: FluidParams):
         """Neighbour ``j``'s share of slot ``i``'s constraint: ``(grad C_i w.r.t. x_j, m W_ij, its gradient squared)``.
@@ -303,7 +297,7 @@ def density_passes(kernel: str) -> DensityPasses:
         w = wp.static(pair_weight)(r2, d, p)
         return vec5(g[0], g[1], g[2], p.reference_mass * w, wp.dot(g, g))
 
-    density_term = wp.func(_named(density_term, suffix))
+    density_term = wp.func(named_variant(density_term, suffix))
     density_sum = neighbor_sum(density_term, pairwise=True)
 
     def correction_term(
@@ -337,7 +331,7 @@ def density_passes(kernel: str) -> DensityPasses:
             coh = n * (-share * cohesion * akinci_cohesion(dist, p))
         return wp.spatial_vector(dx, coh)
 
-    correction_term = wp.func(_named(correction_term, suffix))
+    correction_term = wp.func(named_variant(correction_term, suffix))
 
     def density_correction_term(slots: FluidSlots, j: int, me: CorrectionSlot, p: FluidParams):
         """:func:`correction_term` of neighbour ``j`` with this iteration's multipliers and the pair's cohesion share."""
@@ -345,7 +339,7 @@ def density_passes(kernel: str) -> DensityPasses:
         c = cohesion_weight(me.rel, lr[1], p)
         return wp.static(correction_term)(me.xm, me.lam, slots.xm[j], lr[0], me.particle, slots.particle, j, p, c)
 
-    density_correction_term = wp.func(_named(density_correction_term, suffix))
+    density_correction_term = wp.func(named_variant(density_correction_term, suffix))
     density_correction_sum = neighbor_sum(density_correction_term)
 
     def warm_start_term(slots: FluidSlots, j: int, me: WarmStartSlot, p: FluidParams):
@@ -356,7 +350,7 @@ def density_passes(kernel: str) -> DensityPasses:
             )
         )
 
-    warm_start_term = wp.func(_named(warm_start_term, suffix))
+    warm_start_term = wp.func(named_variant(warm_start_term, suffix))
     warm_start_sum = neighbor_sum(warm_start_term)
 
     def compute_fluid_density_lambda(
@@ -543,9 +537,9 @@ def density_passes(kernel: str) -> DensityPasses:
         moved_xm[i] = wp.vec4(xi[0] + dx[0], xi[1] + dx[1], xi[2] + dx[2], xi4[3])
 
     return DensityPasses(
-        wp.kernel(_named(compute_fluid_density_lambda, suffix)),
-        wp.kernel(_named(apply_fluid_density_correction, suffix)),
-        wp.kernel(_named(apply_fluid_warm_start, suffix)),
+        wp.kernel(named_variant(compute_fluid_density_lambda, suffix)),
+        wp.kernel(named_variant(apply_fluid_density_correction, suffix)),
+        wp.kernel(named_variant(apply_fluid_warm_start, suffix)),
         pair_weight,
         pair_slope,
         density_correction_sum,

@@ -57,7 +57,7 @@ from .continuous_collision import (
     shape_poses,
     world_row,
 )
-from .density_constraint import CorrectionSlot, density_passes, relaxed_correction
+from .density_constraint import CorrectionSlot, density_passes, named_variant, relaxed_correction
 from .sph import FluidParams, FluidSlots
 from .walls import WALL_CONTACTS_PER_SLOT
 
@@ -313,8 +313,7 @@ def relaxation_kernel(kernel: str):
         last_finite_q[k] = x0
         moved_xm[i] = wp.vec4(x1[0], x1[1], x1[2], xm[3])
 
-    relax_overpacked_fluid.__name__ = relax_overpacked_fluid.__qualname__ = "relax_overpacked_fluid" + passes.suffix
-    return wp.kernel(relax_overpacked_fluid)
+    return wp.kernel(named_variant(relax_overpacked_fluid, passes.suffix))
 
 
 @wp.kernel

@@ -159,7 +159,7 @@ def spiky_gradient(r: wp.vec3, r2: float, pi: int, sorted_particle: wp.array[wp.
     dist = wp.sqrt(r2)
     n = pair_direction(r, dist, pi, sorted_particle, j, p)
     d = p.h - dist
-    return n * (p.spiky_grad * d * d)
+    return n * spiky_slope(d, p)
 
 
 @wp.func
