@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/archive/performance_notebook.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|box-runs|waves|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|box-runs|waves|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
 set -u
 out=${1:?output folder}; shift
 export PYTHONUNBUFFERED=1
@@ -246,6 +246,29 @@ for what in "$@"; do
         python3 -m benchmarks dam_break $flags --particles 1000000 --warmup-frames 20 --frames 10 --trials 3 \
           --json "$out/dam_break_1m_kernel_${v}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
         [ $v = before ] && git apply docs/archive/patches/density_kernel_keyword.patch
+      done ;;
+    coarse-cost)
+      # the coarse correction's cost (docs/performance.rst): the 100k and 1M dam breaks with "one_kernel" and the
+      # correction before its bounds' bins were capped and its spread summed by warp in slot order
+      # (docs/archive/patches/coarse_correction_cost.patch taken off), with the bins capped alone (the spread in fluid
+      # order: coarse_spread_fluid_order.patch), with the spread in slot order without the warp's sums
+      # (coarse_spread_plain_atomics.patch), and as it is; and with "poly6" and "one_kernel" alone, for the ratios
+      corrected="--density-kernel one_kernel --coarse-correction 0.5"
+      for v in poly6 one_kernel before fluid_order plain_atomics after; do
+        flags=$corrected; timing=""; patch=""
+        case $v in
+          poly6) flags="" ;;
+          one_kernel) flags="--density-kernel one_kernel" ;;
+          before) git apply -R docs/archive/patches/coarse_correction_cost.patch ;;
+          fluid_order | plain_atomics) patch=docs/archive/patches/coarse_spread_$v.patch; git apply $patch ;;
+          after) timing="--kernel-timing" ;;
+        esac
+        python3 -m benchmarks dam_break $flags $timing --trials 3 --json "$out/dam_break_100k_coarse_${v}_${gpu}.json" 2>&1 \
+          | grep -A1 '^device' | tail -1
+        python3 -m benchmarks dam_break $flags --particles 1000000 --warmup-frames 20 --frames 10 --trials 3 \
+          --json "$out/dam_break_1m_coarse_${v}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+        [ $v = before ] && git apply docs/archive/patches/coarse_correction_cost.patch
+        [ -n "$patch" ] && git apply -R $patch
       done ;;
     density-kernel-still)
       # its tests and the coarse correction's on CUDA; the 100k pool and the 24- and 40-layer columns with

@@ -4,6 +4,7 @@
 """The coarse density correction (``fluid_coarse_correction``): its cells, its load, its worlds (CPU and CUDA)."""
 
 import unittest
+import unittest.mock
 import warnings
 
 import numpy as np
@@ -11,6 +12,7 @@ import warp as wp
 from newton.tests.unittest_utils import add_function_test, get_test_devices
 
 import newton
+from newton._src.solvers.xpbd.fluid import coarse_correction
 from newton._src.solvers.xpbd.fluid.coarse_correction import CELL_FULL, CELL_OUTSIDE, CELL_SURFACE
 from newton.examples.fluid.common import add_closed_box
 from newton.tests.test_fluid_still_water import floating_box_sim
@@ -178,6 +180,27 @@ def test_coarse_correction_step_is_captured(test, device):
         wp.capture_launch(capture.graph)
         eager.step(1)
     np.testing.assert_allclose(graph.q(), eager.q(), atol=1.0e-4)
+
+
+def test_coarse_bounds_do_not_depend_on_the_bins(test, device):
+    """A world's fluid bounds reduced from one bin give the boxes and the step that eight bins give."""
+    runs = []
+    for bins in (coarse_correction.BINS_PER_WORLD, 1):
+        with unittest.mock.patch.object(coarse_correction, "BINS_PER_WORLD", bins):
+            sim = column(device, n=4, layers=16, worlds=2, fluid_coarse_correction=0.5)
+        c = sim.solver._fluid.coarse
+        # (256 and 192 particles: 8 and 6 bins of 32, or one each)
+        test.assertEqual(c.bin_count.numpy()[:2].tolist(), [8, 6] if bins > 1 else [1, 1])
+        sim.step(5)
+        runs.append((c.boxes.corner.numpy(), c.boxes.dims.numpy(), sim.q()))
+    (corner, dims, q), (corner_one, dims_one, q_one) = runs
+    np.testing.assert_array_equal(corner, corner_one)
+    np.testing.assert_array_equal(dims, dims_one)
+    test.assertTrue((dims[:2] > 0).all())
+    if device.is_cuda:
+        np.testing.assert_allclose(q, q_one, atol=1.0e-4)
+    else:
+        np.testing.assert_array_equal(q, q_one)
 
 
 class TestFluidCoarseCorrection(unittest.TestCase):

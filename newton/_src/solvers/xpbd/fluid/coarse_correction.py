@@ -13,7 +13,8 @@ deep column's weight) is removed a few thousandths a pass, and the column rings 
    on every side, in its own block of a table sized with the solver (cells twice as large, and again, while
    the box does not fit in the block: fluid thrown far is still corrected, more coarsely);
 2. each particle's constraint error ``e = rho / rho0 - 1`` from the substep's last density pass is spread
-   to the 8 cell centres around it with trilinear weights (:func:`spread_density_error`);
+   to the 8 cell centres around it with trilinear weights (:func:`spread_density_error`, in slot order, so
+   that the threads of a warp, neighbours in space, sum what they add to a cell before one adds it);
 3. a cell whose fluid fills at least ``FULL_FILL`` of its room (the share of it in front of the static walls
    its particles list for the density pass) is full, one that holds less is free surface, and one with no
    fluid or with its centre behind a wall holds none (:func:`mark_coarse_cells`);
@@ -61,7 +62,10 @@ SMALLEST_BLOCK = 125
 #: particles per bin of a world's bounds: the bins spread the atomic minima and maxima over addresses (a few
 #: addresses taking every particle's atomics serialise them), and one block of threads a world reduces them
 PARTICLES_PER_BIN = 32
-PLACE_BLOCK_DIM = 128
+PLACE_BLOCK_DIM = 256
+#: most bins a world: a block's threads reduce at most 8 each (a 1M-particle world's 31,000 bins took one block of
+#: 128 threads 97 us a substep on an H200)
+BINS_PER_WORLD = 8 * PLACE_BLOCK_DIM
 #: coarsest level (cells 2^level times the base size) tried before a box is given up for the substep
 MAX_LEVEL = 20
 # a bound no cell coordinate reaches (coordinates are clamped to +-COORDINATE_LIMIT)
@@ -243,12 +247,44 @@ def place_coarse_cells(
             return
 
 
+@wp.func_native(
+    """
+#if defined(__CUDA_ARCH__)
+    const unsigned int active = __activemask();
+    const unsigned int peers = __match_any_sync(active, i);
+    float total_a = 0.0f;
+    float total_b = 0.0f;
+    for (unsigned int rest = peers; rest; rest &= rest - 1) {
+        const int lane = __ffs(rest) - 1;
+        total_a += __shfl_sync(peers, value_a, lane);
+        total_b += __shfl_sync(peers, value_b, lane);
+    }
+    if ((threadIdx.x & 31) == __ffs(peers) - 1) {
+        atomicAdd(wp::address(sum_a, i), total_a);
+        atomicAdd(wp::address(sum_b, i), total_b);
+    }
+#else
+    wp::atomic_add(sum_a, i, value_a);
+    wp::atomic_add(sum_b, i, value_b);
+#endif
+"""
+)
+def add_to_cell(sum_a: wp.array[float], sum_b: wp.array[float], i: int, value_a: float, value_b: float):
+    """``sum_a[i] += value_a`` and ``sum_b[i] += value_b``, atomically.
+
+    On a CUDA device the threads of a warp that add to the same cell sum their values first and one of them
+    adds the total: the particles of a warp are neighbours in slot order, and most of them spread to the
+    same few cells, so per-thread atomics would queue on each cell's address.
+    """
+    ...
+
+
 @wp.kernel
 def spread_density_error(
-    fluid_particle: wp.array[wp.int32],
-    slot_of_particle: wp.array[wp.int32],
+    slot_particle: wp.array[wp.int32],
+    slot_world: wp.array[wp.int32],
     particle_q: wp.array[wp.vec3],
-    fluid_row: wp.array[wp.int32],
+    world_count: int,
     density: wp.array[float],
     inv_rest_density: float,
     boxes: CoarseBoxes,
@@ -259,20 +295,23 @@ def spread_density_error(
     weighted_error: wp.array[float],
     room: wp.array[float],
 ):
-    """Each particle's trilinear weight and constraint error, summed per cell, and the cells' room.
+    """Each particle's trilinear weight and constraint error, summed per cell, and the cells' room; a thread a slot.
 
     A cell's room is the share of it the fluid may fill, as the particle that knows most about it sees it:
     the least, over the particles around the cell, of the share its walls (the static walls listed for the
     density pass, :func:`~.walls.fluid_wall_share`) leave open. A particle lists only the walls it is near,
     so the particles by a wall decide how much of a cell it takes.
     """
-    t = wp.tid()
-    p = fluid_particle[t]
-    slot = slot_of_particle[p]
-    x = particle_q[p]
-    if not takes_part(slot, x):
+    slot = wp.tid()
+    p = slot_particle[slot]
+    if p < 0:
         return
-    row = fluid_row[t]
+    x = particle_q[p]
+    if not wp.isfinite(x):
+        return
+    row = slot_world[slot]
+    if row < 0:
+        row = world_count
     n = boxes.dims[row]
     if n[0] == 0:
         return
@@ -284,8 +323,7 @@ def spread_density_error(
     for k in range(8):
         local, w = trilinear_corner(s, n, k)
         c = boxes.first[row] + local
-        wp.atomic_add(weight, c, w)
-        wp.atomic_add(weighted_error, c, w * (relative - 1.0))
+        add_to_cell(weight, weighted_error, c, w, w * (relative - 1.0))
         if walls > 0:
             centre = cell_centre(boxes, row, local)
             open_share = float(1.0)
@@ -525,7 +563,7 @@ class CoarseCorrection:
         capacity = block_sizes(counts, 1.0 / cell_spacings**3)
         first = np.concatenate(([0], np.cumsum(capacity)[:-1]))
         self.cell_count = int(capacity.sum())
-        bins = np.maximum((counts + PARTICLES_PER_BIN - 1) // PARTICLES_PER_BIN, 1)
+        bins = np.clip((counts + PARTICLES_PER_BIN - 1) // PARTICLES_PER_BIN, 1, BINS_PER_WORLD)
         bin_first = np.concatenate(([0], np.cumsum(bins)[:-1]))
         with wp.ScopedDevice(device):
             self.fluid_row = wp.array(fluid_row.astype(np.int32), dtype=wp.int32)
@@ -560,6 +598,8 @@ class CoarseCorrection:
         self,
         fluid_particle: wp.array,
         slot_of_particle: wp.array,
+        slot_particle: wp.array,
+        slot_world: wp.array,
         wall_count: wp.array,
         wall_plane: wp.array,
         density: wp.array,
@@ -599,10 +639,10 @@ class CoarseCorrection:
             spread_density_error,
             dim=n,
             inputs=[
-                fluid_particle,
-                slot_of_particle,
+                slot_particle,
+                slot_world,
                 q,
-                self.fluid_row,
+                self.world_count,
                 density,
                 1.0 / rest_density,
                 self.boxes,

@@ -169,7 +169,12 @@ class FluidSolver:
                 warn_about_dynamic_shapes(model)
                 rows = np.where(worlds >= 0, worlds, int(model.world_count))
                 self.coarse = CoarseCorrection(
-                    rows, model.world_count, d, config.fluid_coarse_cell, config.fluid_coarse_correction, self.device
+                    rows,
+                    model.world_count,
+                    d,
+                    config.fluid_coarse_cell,
+                    config.fluid_coarse_correction,
+                    self.device,
                 )
             self.search = FluidNeighborSearch(
                 self.fluid_particle, model.particle_count, world_count, h, capacity, capped, forced_lanes
@@ -611,6 +616,8 @@ class FluidSolver:
             self.coarse.apply(
                 self.fluid_particle,
                 self.search.slot_of_particle,
+                self.search.sorted_particle,
+                self.search.sorted_world,
                 self.search.wall_count,
                 self.search.wall_plane,
                 self.density,
