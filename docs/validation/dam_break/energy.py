@@ -11,7 +11,8 @@ times the front's error; it prints the change of the total against the start [pe
 front's largest and mean error. Settings are named: ``poly6``, ``one`` (``fluid_density_kernel="one_kernel"``)
 or ``one_cc`` (with ``fluid_coarse_correction=0.5``), then ``_iN`` (iterations), and ``_d0`` for no non-affine
 damping, e.g. ``poly6_i16_d0``. Run from the repository root:
-``python docs/validation/dam_break/energy.py poly6_i2 one_cc_i2 [--substeps S] [--share B] [--cell C] --json F``.
+``python docs/validation/dam_break/energy.py poly6_i2 one_cc_i2 [--substeps S] [--share B] [--cell C] [--sweeps N]
+--json F``.
 """
 
 import argparse
@@ -25,6 +26,7 @@ import warp as wp
 sys.path.insert(0, ".")
 from benchmarks.run_record import write_record  # noqa: E402
 from benchmarks.validate_dam_break import DATA, G, L, Stepper, build, surge_front  # noqa: E402
+from newton._src.solvers.xpbd.fluid import coarse_correction  # noqa: E402
 from newton.examples.fluid.progress import track  # noqa: E402
 
 KERNELS = {"poly6": {}, "one": {"fluid_density_kernel": "one_kernel"}}
@@ -92,11 +94,17 @@ def main():
     parser.add_argument("--share", type=float, default=0.5, help="fluid_coarse_correction of the _cc settings")
     parser.add_argument("--cell", type=float, default=None, help="fluid_coarse_cell of the _cc settings")
     parser.add_argument("--frames", type=int, default=24, help="frames at 60 Hz (24: past the far wall's impact)")
+    parser.add_argument(
+        "--sweeps", type=int, default=None, help="the correction's sweeps a substep (coarse_correction.SWEEPS)"
+    )
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--json", default=None)
     args = parser.parse_args()
     wp.config.quiet = True
     import json  # noqa: PLC0415
+
+    if args.sweeps is not None:
+        coarse_correction.SWEEPS = args.sweeps
 
     with open(DATA) as f:
         points = np.asarray(json.load(f)["points"])
@@ -116,7 +124,7 @@ def main():
     write_record(
         "dam_break_energy",
         wp.get_device(args.device),
-        {"per_l": args.per_l, "share": args.share, "cell": args.cell, "substeps": args.substeps},
+        {"per_l": args.per_l, "share": args.share, "cell": args.cell, "sweeps": args.sweeps, "substeps": args.substeps},
         args.json,
         rows=rows,
     )
