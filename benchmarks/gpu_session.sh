@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/archive/performance_notebook.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|box-runs|waves|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
 set -u
 out=${1:?output folder}; shift
 export PYTHONUNBUFFERED=1
@@ -269,6 +269,21 @@ for what in "$@"; do
           --json "$out/dam_break_1m_coarse_${v}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
         [ $v = before ] && git apply docs/archive/patches/coarse_correction_cost.patch
         [ -n "$patch" ] && git apply -R $patch
+      done ;;
+    coarse-sweeps)
+      # the coarse correction's sweeps a launch each, a black cell relaxing its red neighbours itself
+      # (docs/archive/patches/coarse_sweeps_a_launch_a_sweep.patch, not adopted), against a launch per colour (main):
+      # the 100k and 1M dam breaks with "one_kernel" and the correction, alternated; and the correction's CUDA tests
+      python3 -m pytest -q -k cuda newton/tests/test_fluid_coarse_correction.py 2>&1 | tail -1
+      corrected="--density-kernel one_kernel --coarse-correction 0.5"
+      sweeps=docs/archive/patches/coarse_sweeps_a_launch_a_sweep.patch
+      for v in a_launch_a_sweep a_launch_a_colour a_launch_a_sweep_again; do
+        [ $v != a_launch_a_colour ] && git apply $sweeps
+        python3 -m benchmarks dam_break $corrected --trials 3 --json "$out/dam_break_100k_coarse_sweeps_${v}_${gpu}.json" 2>&1 \
+          | grep -A1 '^device' | tail -1
+        python3 -m benchmarks dam_break $corrected --particles 1000000 --warmup-frames 20 --frames 10 --trials 3 \
+          --json "$out/dam_break_1m_coarse_sweeps_${v}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+        [ $v != a_launch_a_colour ] && git apply -R $sweeps
       done ;;
     density-kernel-still)
       # its tests and the coarse correction's on CUDA; the 100k pool and the 24- and 40-layer columns with
