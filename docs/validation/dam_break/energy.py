@@ -16,6 +16,7 @@ damping, e.g. ``poly6_i16_d0``. Run from the repository root:
 """
 
 import argparse
+import json
 import math
 import re
 import sys
@@ -50,9 +51,8 @@ def keywords(name: str, share: float, cell: float | None) -> dict:
 def run(name: str, args, points: np.ndarray) -> dict:
     d = L / args.per_l
     scene = argparse.Namespace(substeps=args.substeps, speed_clamp=0.0, floor_friction=0.0)
-    model, solver, pipeline, dt = build(
-        args.per_l, 6, scene, wp.get_device(args.device), fluid_rest_distance=d, **keywords(name, args.share, args.cell)
-    )
+    kw = keywords(name, args.share, args.cell)
+    model, solver, pipeline, dt = build(args.per_l, 6, scene, wp.get_device(args.device), fluid_rest_distance=d, **kw)
     mass = model.particle_mass.numpy()
     stepper = Stepper(model, solver, pipeline, dt)
     t_scale = math.sqrt(L / (2.0 * G))
@@ -77,7 +77,7 @@ def run(name: str, args, points: np.ndarray) -> dict:
         "setting": name,
         "particles": int(model.particle_count),
         "substeps": args.substeps,
-        "iterations": keywords(name, args.share, args.cell)["iterations"],
+        "iterations": kw["iterations"],
         "mean_abs_density_error": stats["mean_abs_density_error"],
         "max_compression": stats["max_compression"],
         "front_max_abs_relative_error": float(np.nanmax(np.abs(error))),
@@ -101,8 +101,6 @@ def main():
     parser.add_argument("--json", default=None)
     args = parser.parse_args()
     wp.config.quiet = True
-    import json  # noqa: PLC0415
-
     if args.sweeps is not None:
         coarse_correction.SWEEPS = args.sweeps
 

@@ -41,7 +41,7 @@ import numpy as np
 import warp as wp
 
 from ....geometry import ShapeFlags
-from .continuous_collision import still_shapes
+from .continuous_collision import still_shapes, world_row
 from .reset import world_selected
 from .walls import WALL_CONTACTS_PER_SLOT
 
@@ -309,9 +309,7 @@ def spread_density_error(
     x = particle_q[p]
     if not wp.isfinite(x):
         return
-    row = slot_world[slot]
-    if row < 0:
-        row = world_count
+    row = world_row(slot_world[slot], world_count)
     n = boxes.dims[row]
     if n[0] == 0:
         return

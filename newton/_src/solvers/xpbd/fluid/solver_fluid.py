@@ -169,12 +169,7 @@ class FluidSolver:
                 warn_about_dynamic_shapes(model)
                 rows = np.where(worlds >= 0, worlds, int(model.world_count))
                 self.coarse = CoarseCorrection(
-                    rows,
-                    model.world_count,
-                    d,
-                    config.fluid_coarse_cell,
-                    config.fluid_coarse_correction,
-                    self.device,
+                    rows, model.world_count, d, config.fluid_coarse_cell, config.fluid_coarse_correction, self.device
                 )
             self.search = FluidNeighborSearch(
                 self.fluid_particle, model.particle_count, world_count, h, capacity, capped, forced_lanes
