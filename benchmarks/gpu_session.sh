@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/archive/performance_notebook.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
 set -u
 out=${1:?output folder}; shift
 export PYTHONUNBUFFERED=1
@@ -376,6 +376,48 @@ for what in "$@"; do
           --json "$out/sloshing_n20${tag}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
         python3 -m benchmarks sloshing --device cuda:0 --per-length 160 --depth-particles 8 $v \
           --json "$out/sloshing_n160${tag}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+      done ;;
+    wave-starts)
+      # the standing wave as a mean over starts a hair apart, isolated worlds of one model (docs/validation.rst,
+      # "Standing wave"): its reading scatters from start to start by more than the 2 % goal
+      for n in 20 40; do
+        starts=$(( n == 20 ? 64 : 16 ))
+        # (with "one_kernel" and the coarse correction: the coarse-surface mode)
+        for v in "" "--nonaffine-damping 0 --control --periods 6"; do
+          tag=${v//--/}; tag=${tag// /_}; tag=${tag:+_${tag//_periods_6/}}; echo "== $n per L, $starts starts ${v:-defaults}"
+          python3 -m benchmarks sloshing --device cuda:0 --per-length $n --depth-particles 8 --starts $starts $v \
+            --json "$out/sloshing_starts_n${n}${tag}_${gpu}.json" 2>&1 | grep -A2 '^device' | tail -2
+        done
+      done ;;
+    coarse-surface)
+      # the coarse problem's free surface where the fill puts it (main; "after") and at the free-surface cells'
+      # centres (docs/archive/patches/coarse_surface_at_cell_centres.patch; "before"), with "one_kernel": the standing
+      # wave over starts, the still columns and the dam breaks (docs/validation.rst, "Standing wave");
+      # SURFACE_VARIANTS="after before" by default, one of them for a call that would run too long
+      corrected="--density-kernel one_kernel --coarse-correction 0.5"
+      for v in ${SURFACE_VARIANTS:-after before}; do
+        [ $v = before ] && git apply docs/archive/patches/coarse_surface_at_cell_centres.patch
+        for n in 20 40; do
+          starts=$(( n == 20 ? 64 : 16 ))
+          for d in "" "--nonaffine-damping 0 --control --periods 6"; do
+            tag=${d:+_d0_control}; echo "== $v: wave, $n per L, $starts starts ${d:-damped}"
+            python3 -m benchmarks sloshing --device cuda:0 --per-length $n --depth-particles 8 --starts $starts $corrected $d \
+              --json "$out/sloshing_starts_n${n}_one_kernel_coarse_correction${tag}_surface_${v}_${gpu}.json" 2>&1 \
+              | grep -A2 '^device' | tail -1
+          done
+        done
+        for size in 50x40 12x24 12x40; do
+          n=${size%x*}; l=${size#*x}; echo "== $v: still, $n x $n x $l"
+          python3 -m benchmarks rest_column --device cuda:0 --n $n --layers $l $corrected \
+            --json "$out/rest_column_${n}x${n}x${l}_one_kernel_coarse_correction_surface_${v}_${gpu}.json" 2>&1 \
+            | grep -A1 '^device' | tail -1
+        done
+        echo "== $v: dam breaks, 100k and 1M"
+        python3 -m benchmarks dam_break --trials 3 $corrected \
+          --json "$out/dam_break_100k_coarse_surface_${v}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+        python3 -m benchmarks dam_break --particles 1000000 --warmup-frames 20 --frames 10 --trials 3 $corrected \
+          --json "$out/dam_break_1m_coarse_surface_${v}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+        [ $v = before ] && git apply -R docs/archive/patches/coarse_surface_at_cell_centres.patch
       done ;;
     jet)
       # Torricelli's jet without the non-affine damping at 32 and 64 substeps, and at eight times the particles

@@ -22,7 +22,13 @@ deep column's weight) is removed a few thousandths a pass, and the column rings 
    red-black sweeps of over-relaxed Gauss-Seidel started from the last substep's ``phi``
    (:func:`relax_coarse_potential`): ``phi`` is 0 on the free surface and passes no flux into cells
    without fluid, which is what a wall is to the cells (so no shape is read); the screening keeps ``phi``
-   bounded where a fluid fills a closed container and no free surface takes its compression;
+   bounded where a fluid fills a closed container and no free surface takes its compression. The surface
+   is where a free-surface cell's fill puts it, ``theta`` cells from its full neighbour's centre, and the
+   face to it weighs ``1 / theta`` (the ghost-fluid condition of Gibou et al. 2002, "A second-order-accurate
+   symmetric discretization of the Poisson equation on irregular domains", J. Comput. Phys. 176): with the
+   surface at the surface cell's centre instead, the potential's boundary sat up to a cell from the fluid's
+   top and did not follow a wave's surface within a cell, which slowed a standing wave by a quarter of its
+   period (docs/validation.rst, "Standing wave");
 5. each fluid particle moves by ``fluid_coarse_correction * grad phi`` read with the same weights, and
    the move becomes velocity, as a density pass's does (:func:`move_by_coarse_gradient`).
 
@@ -54,6 +60,9 @@ FULL_FILL = 0.97
 #: red-black over-relaxed Gauss-Seidel sweeps per substep, and their over-relaxation
 SWEEPS = 8
 OMEGA = 1.8
+#: nearest a free surface is taken to a full cell's centre [cells]: the face to it weighs ``1 / theta``, and a
+#: surface read within a hair of the centre would make that face outweigh the rest of the cell's equation
+GHOST_MIN = 0.25
 #: screening length of the potential [cells]: far longer than the deepest fluid it corrects
 SCREENING_CELLS = 64.0
 #: a world's cells in the table: this many times the cells its fluid fills at rest, plus a 5^3 block
@@ -353,7 +362,8 @@ def mark_coarse_cells(
 ):
     """Full, free-surface or outside cells, the full cells' source and their potential from the last substep.
 
-    Clears the sums for the next substep.
+    A free-surface cell's ``source`` holds instead the distance [cells] from a full neighbour's centre to the
+    surface its fill implies (:func:`surface_distance`). Clears the sums for the next substep.
     """
     c = wp.tid()
     row = cell_row[c]
@@ -375,8 +385,10 @@ def mark_coarse_cells(
         return
     # one whose fluid does not fill its room is the free surface
     spacings = rest_distance / cell_edge(boxes, row)
-    if w * spacings * spacings * spacings < FULL_FILL * open_share:
+    fill = w * spacings * spacings * spacings / wp.max(open_share, 1.0e-6)
+    if fill < FULL_FILL:
         kind[c] = CELL_SURFACE
+        source[c] = surface_distance(fill)
         return
     kind[c] = CELL_FULL
     source[c] = wp.max(mean_error, 0.0)
@@ -390,14 +402,43 @@ def mark_coarse_cells(
 
 
 @wp.func
+def surface_distance(fill: float) -> float:
+    """Distance [cells] from a full cell's centre to the free surface in its neighbour, from the neighbour's fill.
+
+    Fluid up to ``z`` cells past the full centre (and no further) gives the neighbour's centre a trilinear fill
+    of ``z^2 / 2`` for ``z`` <= 1 and ``1 - (2 - z)^2 / 2`` up to 2: this inverts it (on a lattice of 3 spacings
+    a cell, within 0.03 cells of the lattice's top), no nearer than ``GHOST_MIN``.
+    """
+    f = wp.clamp(fill, 0.0, 1.0)
+    z = float(0.0)
+    if f <= 0.5:
+        z = wp.sqrt(2.0 * f)
+    else:
+        z = 2.0 - wp.sqrt(2.0 * (1.0 - f))
+    return wp.max(z, GHOST_MIN)
+
+
+@wp.func
 def neighbour_potential(
-    phi: wp.array[float], kind: wp.array[wp.int32], first: int, ijk: wp.vec3i, n: wp.vec3i, own: float
+    phi: wp.array[float],
+    kind: wp.array[wp.int32],
+    source: wp.array[float],
+    first: int,
+    ijk: wp.vec3i,
+    n: wp.vec3i,
+    own: float,
 ):
-    """A neighbour's potential and whether flux passes to it: no flux (``own``, 0) where it holds no fluid."""
+    """A neighbour's potential and the weight of the face to it: no flux (``own``, 0) where it holds no fluid; at a
+    free-surface neighbour the potential 0 where the surface is, ``theta`` cells away (weight ``1 / theta``), as the
+    ghost value ``own (1 - 1 / theta)`` at its centre."""
     if inside_box(ijk[0], ijk[1], ijk[2], n):
         c = first + cell_index(ijk[0], ijk[1], ijk[2], n)
-        if kind[c] != CELL_OUTSIDE:
+        k = kind[c]
+        if k == CELL_FULL:
             return phi[c], 1.0
+        if k == CELL_SURFACE:
+            theta = source[c]
+            return own * (1.0 - 1.0 / theta), 1.0 / theta
     return own, 0.0
 
 
@@ -427,7 +468,7 @@ def relax_coarse_potential(
         for side in range(2):
             o = wp.vec3i(0, 0, 0)
             o[axis] = 2 * side - 1
-            value, open_face = neighbour_potential(phi, kind, first, ijk + o, n, 0.0)
+            value, open_face = neighbour_potential(phi, kind, source, first, ijk + o, n, 0.0)
             total += value
             faces += open_face
     h = cell_edge(boxes, row)
@@ -440,6 +481,7 @@ def coarse_potential_gradient(
     cell_row: wp.array[wp.int32],
     boxes: CoarseBoxes,
     kind: wp.array[wp.int32],
+    source: wp.array[float],
     phi: wp.array[float],
     # outputs
     gradient: wp.array[wp.vec3],
@@ -460,8 +502,8 @@ def coarse_potential_gradient(
     for axis in range(3):
         o = wp.vec3i(0, 0, 0)
         o[axis] = 1
-        ahead, _a = neighbour_potential(phi, kind, first, ijk + o, n, own)
-        behind, _b = neighbour_potential(phi, kind, first, ijk - o, n, own)
+        ahead, _a = neighbour_potential(phi, kind, source, first, ijk + o, n, own)
+        behind, _b = neighbour_potential(phi, kind, source, first, ijk - o, n, own)
         g[axis] = ahead - behind
     gradient[c] = g / (2.0 * cell_edge(boxes, row))
 
@@ -669,7 +711,7 @@ class CoarseCorrection:
         wp.launch(
             coarse_potential_gradient,
             dim=cells,
-            inputs=[self.cell_row, self.boxes, self.kind, self.phi],
+            inputs=[self.cell_row, self.boxes, self.kind, self.source, self.phi],
             outputs=[self.gradient, self.last_phi],
             device=d,
         )
