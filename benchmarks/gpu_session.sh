@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/archive/performance_notebook.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|coarse-damping|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
 set -u
 out=${1:?output folder}; shift
 export PYTHONUNBUFFERED=1
@@ -418,6 +418,23 @@ for what in "$@"; do
         python3 -m benchmarks dam_break --particles 1000000 --warmup-frames 20 --frames 10 --trials 3 $corrected \
           --json "$out/dam_break_1m_coarse_surface_${v}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
         [ $v = before ] && git apply -R docs/archive/patches/coarse_surface_at_cell_centres.patch
+      done ;;
+    coarse-damping)
+      # the one kernel with the coarse correction at four non-affine dampings: the standing wave over 64 starts
+      # (20 per L) and the still columns (docs/validation.rst, "Standing wave" and "Still column")
+      corrected="--density-kernel one_kernel --coarse-correction 0.5"
+      for damping in 0 0.02 0.05 0.1; do
+        echo "== damping $damping: wave, 20 per L, 64 starts"
+        python3 -m benchmarks sloshing --device cuda:0 --depth-particles 8 --starts 64 $corrected \
+          --nonaffine-damping $damping --control --periods 6 \
+          --json "$out/sloshing_starts_n20_one_kernel_coarse_correction_damping_${damping}_control_${gpu}.json" 2>&1 \
+          | grep -A2 '^device' | tail -1
+        for size in 50x40 12x24 12x40; do
+          n=${size%x*}; l=${size#*x}; echo "== damping $damping: still, $n x $n x $l"
+          python3 -m benchmarks rest_column --device cuda:0 --n $n --layers $l $corrected --nonaffine-damping $damping \
+            --json "$out/rest_column_${n}x${n}x${l}_one_kernel_coarse_correction_damping_${damping}_${gpu}.json" 2>&1 \
+            | grep -A1 '^device' | tail -1
+        done
       done ;;
     jet)
       # Torricelli's jet without the non-affine damping at 32 and 64 substeps, and at eight times the particles
