@@ -238,42 +238,10 @@ class TestFluidValidation(unittest.TestCase):
     pass
 
 
-add_function_test(
-    TestFluidValidation,
-    "test_surge_front_matches_experiment",
-    test_surge_front_matches_experiment,
-    devices=get_test_devices(),
-)
-add_function_test(
-    TestFluidValidation,
-    "test_converged_surge_front_within_bound",
-    test_converged_surge_front_within_bound,
-    devices=get_test_devices(),
-)
-add_function_test(
-    TestFluidValidation,
-    "test_settled_column_stays_at_rest",
-    test_settled_column_stays_at_rest,
-    devices=get_test_devices(),
-)
-add_function_test(
-    TestFluidValidation, "test_standing_wave_period", test_standing_wave_period, devices=get_test_devices()
-)
-add_function_test(
-    TestFluidValidation,
-    "test_corrected_standing_wave_period",
-    test_corrected_standing_wave_period,
-    devices=get_test_devices(),
-)
-add_function_test(
-    TestFluidValidation, "test_standing_wave_over_starts", test_standing_wave_over_starts, devices=get_test_devices()
-)
-add_function_test(
-    TestFluidValidation, "test_torricelli_jet_speed", test_torricelli_jet_speed, devices=get_test_devices()
-)
-add_function_test(
-    TestFluidValidation, "test_hydrostatic_pressure", test_hydrostatic_pressure, devices=get_test_devices()
-)
+devices = get_test_devices()
+for _name, _func in list(globals().items()):
+    if _name.startswith("test_") and callable(_func):
+        add_function_test(TestFluidValidation, _name, _func, devices=devices)
 
 if __name__ == "__main__":
     unittest.main(verbosity=2)
