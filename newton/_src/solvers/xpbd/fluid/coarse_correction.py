@@ -487,7 +487,8 @@ def coarse_potential_gradient(
     gradient: wp.array[wp.vec3],
     last_phi: wp.array[float],
 ):
-    """Central differences of the potential (a face to a cell without fluid passes no flux); keeps ``phi``."""
+    """Central differences of the potential (a face to a cell without fluid passes no flux; a full cell reads a
+    free-surface neighbour at its ghost value, :func:`neighbour_potential`); keeps ``phi``."""
     c = wp.tid()
     own = phi[c]
     last_phi[c] = own
