@@ -28,6 +28,17 @@ dam_break_without() {
     python3 -m benchmarks dam_break --trials 3 --json "$out/dam_break_100k_${2}_${v}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
   done
 }
+# the still columns with "one_kernel" and the coarse correction (the 100k pool, 24 and 40 layers); records
+# rest_column_NxNxL_one_kernel_coarse_correction$1_GPU.json, the rest of the arguments passed to rest_column
+corrected_still_columns() {
+  local tag=$1; shift
+  for size in 50x40 12x24 12x40; do
+    n=${size%x*}; l=${size#*x}; echo "== still, $n x $n x $l $*"
+    python3 -m benchmarks rest_column --device cuda:0 --n $n --layers $l --density-kernel one_kernel \
+      --coarse-correction 0.5 "$@" --json "$out/rest_column_${n}x${n}x${l}_one_kernel_coarse_correction${tag}_${gpu}.json" \
+      2>&1 | grep -A1 '^device' | tail -1
+  done
+}
 for what in "$@"; do
   case $what in
     bench)
@@ -290,12 +301,7 @@ for what in "$@"; do
       # "one_kernel" and the coarse correction
       python3 -m pytest -q -k cuda newton/tests/test_fluid_density_kernel.py newton/tests/test_fluid_coarse_correction.py \
         2>&1 | tail -1
-      for size in 50x40 12x24 12x40; do
-        n=${size%x*}; l=${size#*x}
-        python3 -m benchmarks rest_column --device cuda:0 --n $n --layers $l --density-kernel one_kernel \
-          --coarse-correction 0.5 --json "$out/rest_column_${n}x${n}x${l}_one_kernel_coarse_correction_${gpu}.json" 2>&1 \
-          | grep -A1 '^device' | tail -1
-      done ;;
+      corrected_still_columns "" ;;
     box-runs)
       # the floating box of test_floating_box_comes_to_rest repeated at two non-affine dampings (its outcome on a GPU
       # changes from run to run; docs/validation.rst "Floating box"), and the 100k pool and dam break at each
@@ -384,7 +390,7 @@ for what in "$@"; do
         starts=$(( n == 20 ? 64 : 16 ))
         # (with "one_kernel" and the coarse correction: the coarse-surface mode)
         for v in "" "--nonaffine-damping 0 --control --periods 6"; do
-          tag=${v//--/}; tag=${tag// /_}; tag=${tag:+_${tag//_periods_6/}}; echo "== $n per L, $starts starts ${v:-defaults}"
+          tag=${v:+_nonaffine-damping_0_control}; echo "== $n per L, $starts starts ${v:-defaults}"
           python3 -m benchmarks sloshing --device cuda:0 --per-length $n --depth-particles 8 --starts $starts $v \
             --json "$out/sloshing_starts_n${n}${tag}_${gpu}.json" 2>&1 | grep -A2 '^device' | tail -2
         done
@@ -406,12 +412,7 @@ for what in "$@"; do
               | grep -A2 '^device' | tail -1
           done
         done
-        for size in 50x40 12x24 12x40; do
-          n=${size%x*}; l=${size#*x}; echo "== $v: still, $n x $n x $l"
-          python3 -m benchmarks rest_column --device cuda:0 --n $n --layers $l $corrected \
-            --json "$out/rest_column_${n}x${n}x${l}_one_kernel_coarse_correction_surface_${v}_${gpu}.json" 2>&1 \
-            | grep -A1 '^device' | tail -1
-        done
+        corrected_still_columns "_surface_$v"
         echo "== $v: dam breaks, 100k and 1M"
         python3 -m benchmarks dam_break --trials 3 $corrected \
           --json "$out/dam_break_100k_coarse_surface_${v}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
@@ -429,12 +430,7 @@ for what in "$@"; do
           --nonaffine-damping $damping --control --periods 6 \
           --json "$out/sloshing_starts_n20_one_kernel_coarse_correction_damping_${damping}_control_${gpu}.json" 2>&1 \
           | grep -A2 '^device' | tail -1
-        for size in 50x40 12x24 12x40; do
-          n=${size%x*}; l=${size#*x}; echo "== damping $damping: still, $n x $n x $l"
-          python3 -m benchmarks rest_column --device cuda:0 --n $n --layers $l $corrected --nonaffine-damping $damping \
-            --json "$out/rest_column_${n}x${n}x${l}_one_kernel_coarse_correction_damping_${damping}_${gpu}.json" 2>&1 \
-            | grep -A1 '^device' | tail -1
-        done
+        corrected_still_columns "_damping_$damping" --nonaffine-damping $damping
       done ;;
     jet)
       # Torricelli's jet without the non-affine damping at 32 and 64 substeps, and at eight times the particles
