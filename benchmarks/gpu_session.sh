@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/archive/performance_notebook.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|coarse-damping|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|coarse-damping|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|exact-i2|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
 set -u
 out=${1:?output folder}; shift
 export PYTHONUNBUFFERED=1
@@ -370,6 +370,14 @@ for what in "$@"; do
       # the standing wave (about 100k) and Torricelli's jet (about 150k) over substeps x iterations and modes
       python3 -W ignore -m benchmarks accuracy_chart --size large --device cuda:0 --json "$out/accuracy_chart_${gpu}.json" \
         --plot "$out/accuracy_chart_${gpu}.png" 2>&1 | grep -v '^Module' ;;
+    exact-i2)
+      # the same chart at two iterations a substep, every mode, the one kernel with the coarse correction included, in
+      # one session (docs/validation.rst, "Exact answers"; EXACT_PROBLEMS picks the problems, a command's time being
+      # bounded); plotted with accuracy_chart --from-json
+      for problem in ${EXACT_PROBLEMS:-sloshing torricelli pressure}; do
+        python3 -W ignore -m benchmarks accuracy_chart --size large --device cuda:0 --iterations 2 --problems "$problem" \
+          --json "$out/accuracy_chart_i2_${problem}_${gpu}.json" 2>&1 | grep -v '^Module'
+      done ;;
     waves)
       # the standing wave at the smoothing length and damping that keep it, against the defaults, and what the
       # same keywords do to the 100k dam break and the 100k pool (docs/validation.rst, "Standing wave")

@@ -12,8 +12,11 @@ frame's last substep):
   multipliers ``L`` it summed over its density passes (``w`` the relaxation), a force ``m / dt^2`` times
   that. The pressure it implies is the ``p = -K L`` whose gradient, on the rest lattice, those pair
   forces equal (``-V grad p``, ``V = d^3``): ``K = w m rho_V |sum_j s(r_j) r_j| / (3 rho0 dt^2)``, ``s`` the
-  spiky gradient's magnitude, ``rho_V = m / d^3``. Compared per layer with ``rho_V g (H - z)``, ``H`` the
-  level at the rest spacing (the fluid's volume over the floor), below the top two layers;
+  magnitude of the gradient the density constraint moves along (the spiky kernel's with ``"poly6"``, the
+  one kernel's own), ``rho_V = m / d^3``. With ``fluid_coarse_correction`` the correction's move carries
+  the rest of the pressure, ``-rho_V beta phi / dt^2`` (:func:`coarse_pressure`), added to it. Compared per
+  layer with ``rho_V g (H - z)``, ``H`` the level at the rest spacing (the fluid's volume over the floor),
+  below the top two layers;
 - the forces on the walls: from the straight line through the layers' pressures, the floor's
   ``p(0) A`` against the fluid's weight and a side wall's ``W integral p dz`` against ``rho_V g H^2 W / 2``;
   and the part of each the wall's ghost density carries, ``(m w / dt^2) sum_i L_i grad c_wall(x_i)``
@@ -31,13 +34,12 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import math
 import time
 
 import numpy as np
 import warp as wp
 
-from newton._src.solvers.xpbd.fluid.calibration import lattice_density, rest_lattice, wall_density_tables
+from newton._src.solvers.xpbd.fluid.calibration import kernel_slope, lattice_density, rest_lattice, wall_density_tables
 from newton.examples.fluid.progress import track
 
 from .frames import add_solver_arguments, contact_frames, run_on_device
@@ -48,7 +50,9 @@ from .run_record import write_record
 def rest_density(solver, mass: float, d: float) -> float:
     """The rest density in use [kg/m^3]: the one set, else the rest lattice's (the solver's default)."""
     rho0 = solver.fluid_rest_density
-    return lattice_density(d, solver.fluid_smoothing_length, mass) if rho0 is None else rho0
+    if rho0 is None:
+        return lattice_density(d, solver.fluid_smoothing_length, mass, kernel=solver.fluid_density_kernel)
+    return rho0
 
 
 def pressure_factor(solver, mass: float, d: float, dt: float) -> float:
@@ -56,21 +60,34 @@ def pressure_factor(solver, mass: float, d: float, dt: float) -> float:
     h = solver.fluid_smoothing_length
     r = np.linalg.norm(rest_lattice(d, h), axis=1)
     r = r[(r > 0.0) & (r < h)]
-    spiky = 45.0 / (math.pi * h**6) * (h - r) ** 2
+    slope = kernel_slope(solver.fluid_density_kernel, r, d, h)
     rho_v = mass / d**3
     return (
         solver.fluid_relaxation
         * mass
         * rho_v
-        * float((spiky * r).sum())
+        * float((slope * r).sum())
         / (3.0 * rest_density(solver, mass, d) * dt * dt)
     )
+
+
+def coarse_pressure(solver, state, rho_v: float, dt: float) -> np.ndarray:
+    """Each particle's pressure carried by the coarse density correction [Pa]; zeros without it.
+
+    The correction moves a fluid particle by ``beta grad phi``, a force ``m beta grad phi / dt^2``: the pressure
+    whose ``-V grad p`` equals it is ``-rho_V beta phi / dt^2``, zero at the free surface as ``phi`` is
+    (``SolverXPBD.fluid_coarse_potential``, the frame's last substep's).
+    """
+    phi = solver.fluid_coarse_potential(state)
+    if phi is None:
+        return np.zeros(state.particle_q.shape[0])
+    return -rho_v * solver.fluid_coarse_correction * phi.numpy().astype(np.float64) / (dt * dt)
 
 
 def wall_gradient(solver, mass: float, d: float, distance: np.ndarray) -> np.ndarray:
     """The walls' share of ``rho / rho0`` differentiated against the distance from the wall [1/m]."""
     h = solver.fluid_smoothing_length
-    _, drho = wall_density_tables(d, h, mass)
+    _, drho = wall_density_tables(d, h, mass, kernel=solver.fluid_density_kernel)
     step = h / (len(drho) - 1)
     u = np.clip(distance, 0.0, None) / step
     return np.interp(u, np.arange(len(drho)), drho, right=0.0) / rest_density(solver, mass, d)
@@ -91,7 +108,10 @@ def run(args, device) -> dict:
     for _ in track(range(round(args.relax * 60.0)), "hydrostatic_pressure: relaxing", unit="frame"):
         frame()
     count = model.particle_count
+    dt = 1.0 / 60.0 / args.substeps
+    rho_v = mass / d**3
     lam_sum = np.zeros(count)
+    coarse_sum = np.zeros(count)
     q_sum = np.zeros((count, 3))
     frames = round(args.measure * 60.0)
     simulated = 0.0  # [s] of the frames themselves, read-backs left out
@@ -101,13 +121,13 @@ def run(args, device) -> dict:
         wp.synchronize_device(device)
         simulated += time.perf_counter() - tick
         lam_sum += solver.fluid_warm_start_multipliers.numpy().astype(np.float64) / args.warm_start
-        q_sum += states[0].particle_q.numpy().astype(np.float64)
+        q_now = states[0].particle_q.numpy().astype(np.float64)
+        coarse_sum += coarse_pressure(solver, states[0], rho_v, dt)
+        q_sum += q_now
     wall = time.perf_counter() - start
     lam, q = lam_sum / frames, q_sum / frames
-    dt = 1.0 / 60.0 / args.substeps
     edge = args.n * d
     level = count * d**3 / (edge * edge)
-    rho_v = mass / d**3
     weight = count * mass * GRAVITY
     # the walls' pushes on the fluid through their ghost density: the floor (z = 0) and the wall at x = 0
     force = mass * solver.fluid_relaxation / (dt * dt)
@@ -115,7 +135,8 @@ def run(args, device) -> dict:
     side = float(force * (lam * wall_gradient(solver, mass, d, q[:, 0])).sum())
     side_theory = 0.5 * rho_v * GRAVITY * level**2 * edge
     # the pressure per layer, away from the side walls' first layer (their ghost density shares the load)
-    p = -pressure_factor(solver, mass, d, dt) * lam
+    coarse = coarse_sum / frames
+    p = -pressure_factor(solver, mass, d, dt) * lam + coarse
     inner = (q[:, 0] > d) & (q[:, 0] < edge - d) & (q[:, 1] > d) & (q[:, 1] < edge - d)
     layer = np.floor(q[:, 2] / d).astype(int)
     rows = []
@@ -125,7 +146,15 @@ def run(args, device) -> dict:
             continue
         z = float(q[pick, 2].mean())
         theory = rho_v * GRAVITY * (level - z)
-        rows.append({"layer": k, "z_m": z, "pressure_Pa": float(p[pick].mean()), "theory_Pa": theory})
+        rows.append(
+            {
+                "layer": k,
+                "z_m": z,
+                "pressure_Pa": float(p[pick].mean()),
+                "coarse_Pa": float(coarse[pick].mean()),
+                "theory_Pa": theory,
+            }
+        )
     below = [r for r in rows if r["layer"] < max(r["layer"] for r in rows) - 1]
     errors = np.array([r["pressure_Pa"] / r["theory_Pa"] - 1.0 for r in below])
     # the layers' pressures through a [1, 2, 1] / 4 filter (both sides alike): a multiplier alternating
@@ -167,6 +196,8 @@ def run(args, device) -> dict:
         "pressure_error_mean": float(errors.mean()),
         # the largest error of the filtered profile, the floor layer (no layer below it) left out
         "pressure_error_max_filtered": float(np.abs(filtered).max()),
+        # the coarse correction's share of the pressure below the top two layers (0 without it)
+        "coarse_pressure_share": sum(r["coarse_Pa"] for r in below) / sum(r["pressure_Pa"] for r in below),
         "pressure_rows": rows,
         "mean_abs_density_error": stats["mean_abs_density_error"],
         "max_compression": stats["max_compression"],

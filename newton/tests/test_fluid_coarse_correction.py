@@ -114,6 +114,40 @@ def test_coarse_cells_know_surface_walls_and_fluid(test, device):
     test.assertTrue((phi[1:3, 1:3, 3] < 0.0).all())
 
 
+def test_coarse_potential_is_read_at_the_particles(test, device):
+    """``fluid_coarse_potential``: the cells' potential at each fluid particle, from the cells with fluid around it."""
+    test.assertIsNone(column(device, n=2, layers=2).solver.fluid_coarse_potential(None))
+    sim = column(device, n=6, layers=12, fluid_coarse_correction=0.5)
+    sim.step(30)
+    potential = sim.solver.fluid_coarse_potential(sim.state_0)
+    test.assertEqual(potential.shape[0], sim.model.particle_count)
+    test.assertEqual(potential.device, sim.model.device)
+    # the reference: the 8 cell centres around each particle, weighted trilinearly, cells without fluid left out
+    c = sim.solver._fluid.coarse
+    row = 0 if c.boxes.dims.numpy()[0][0] else 1
+    dims, corner = c.boxes.dims.numpy()[row], c.boxes.corner.numpy()[row]
+    edge = c.base_cell * 2.0 ** c.boxes.level.numpy()[row]
+    first = c.boxes.first.numpy()[row]
+    kind, phi = c.kind.numpy(), c.phi.numpy().astype(np.float64)
+    s = sim.q() / edge - corner - 0.5
+    low = np.floor(s).astype(int)
+    total, value = np.zeros(len(s)), np.zeros(len(s))
+    for bits in range(8):
+        o = np.array([(bits >> axis) & 1 for axis in range(3)])
+        ijk = np.clip(low + o, 0, dims - 1)
+        w = np.prod(np.where(o == 1, s - low, 1.0 - (s - low)), axis=1)
+        cell = first + (ijk[:, 0] * dims[1] + ijk[:, 1]) * dims[2] + ijk[:, 2]
+        fluid = kind[cell] != CELL_OUTSIDE
+        total += np.where(fluid, w, 0.0)
+        value += np.where(fluid, w * phi[cell], 0.0)
+    np.testing.assert_allclose(potential.numpy(), value / total, rtol=1e-4, atol=1e-9)
+    # a pressure's potential: below zero in the loaded column, deeper toward the floor
+    read = potential.numpy()
+    z = sim.q()[:, 2]
+    test.assertLess(read.max(), 1e-12)
+    test.assertLess(read[z < 0.2].mean(), read[(z > 0.3) & (z < 0.45)].mean())
+
+
 def test_coarse_cells_are_per_world(test, device):
     """Worlds at one place have cells of their own: a world steps as it does alone."""
     together = column(device, n=4, layers=16, worlds=2, fluid_coarse_correction=0.5)

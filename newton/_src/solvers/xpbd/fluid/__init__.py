@@ -9,7 +9,8 @@ names, what to add to ``SolverXPBD``:
 
 - the ``fluid_*`` constructor keywords and matching properties;
 - :meth:`reset` (restore the fluid of the selected worlds and clear their carried solver state);
-- :meth:`fluid_diagnostics` and :meth:`update_render_particles`, the render and diffuse arrays.
+- :meth:`fluid_diagnostics`, :meth:`fluid_coarse_potential` and :meth:`update_render_particles`, the render and
+  diffuse arrays.
 
 Solvers whose model has no fluid particle run upstream's step unchanged.
 """
@@ -59,6 +60,28 @@ def _warm_start_multipliers(solver):
     if fluid is None or fluid.particle_lambda.shape[0] == 0:
         return None
     return fluid.particle_lambda
+
+
+def fluid_coarse_potential(self, state):
+    """The coarse density correction's potential [m^2] at each particle of ``state``, from the last substep.
+
+    Each substep moves a fluid particle by ``fluid_coarse_correction`` times the potential's gradient, so the
+    pressure that move stands for is ``-(m / d^3) fluid_coarse_correction phi / dt^2`` (``d`` the rest distance,
+    ``dt`` the substep; zero at the free surface, as ``phi`` is). Read from the cells with fluid around each
+    particle as the move reads their gradients. Allocates its result and launches one kernel: call it when you
+    need the numbers, not in the hot loop.
+
+    Args:
+        state: The state whose particle positions the potential is read at (the one the last step wrote).
+
+    Returns:
+        ``wp.array`` of ``particle_count`` floats (0 for particles not fluid), or ``None`` without fluid or
+        without ``fluid_coarse_correction``.
+    """
+    fluid = self._fluid
+    if fluid is None or fluid.coarse is None:
+        return None
+    return fluid.coarse.potential_at(fluid.fluid_particle, state.particle_q)
 
 
 def _diffuse_property(field: str, doc: str):
@@ -230,6 +253,7 @@ def _additions() -> dict:
     added = {
         "reset": reset,
         "fluid_diagnostics": fluid_diagnostics,
+        "fluid_coarse_potential": fluid_coarse_potential,
         "update_render_particles": update_render_particles,
     }
     for name in (

@@ -42,6 +42,7 @@ a step: every launch covers the table's fixed size, and a cell past its world's 
 """
 
 import warnings
+from typing import Any
 
 import numpy as np
 import warp as wp
@@ -509,6 +510,25 @@ def coarse_potential_gradient(
     gradient[c] = g / (2.0 * cell_edge(boxes, row))
 
 
+@wp.func
+def read_cells_with_fluid(
+    boxes: CoarseBoxes, row: int, x: wp.vec3, kind: wp.array[wp.int32], values: wp.array(dtype=Any), zero: Any
+):
+    """The trilinear sum of ``values`` over the 8 cell centres around ``x``, and the weight it took: a cell without
+    fluid (a wall's) has no value, so the cells with fluid share its weight."""
+    n = boxes.dims[row]
+    s = position_in_cells(boxes, row, x)
+    total = float(0.0)
+    weighted = zero
+    for k in range(8):
+        local, w = trilinear_corner(s, n, k)
+        c = boxes.first[row] + local
+        if kind[c] != CELL_OUTSIDE:
+            weighted += w * values[c]
+            total += w
+    return weighted, total
+
+
 @wp.kernel
 def move_by_coarse_gradient(
     fluid_particle: wp.array[wp.int32],
@@ -533,22 +553,38 @@ def move_by_coarse_gradient(
     n = boxes.dims[row]
     if n[0] == 0:
         return
-    s = position_in_cells(boxes, row, x)
-    dx = wp.vec3(0.0)
-    total = float(0.0)
-    for k in range(8):
-        local, w = trilinear_corner(s, n, k)
-        c = boxes.first[row] + local
-        # a cell without fluid (a wall's) has no gradient: the cells with fluid share its weight
-        if kind[c] != CELL_OUTSIDE:
-            dx += w * gradient[c]
-            total += w
+    dx, total = read_cells_with_fluid(boxes, row, x, kind, gradient, wp.vec3(0.0))
     if total <= 0.0:
         return
     dx = (share / total) * dx
     if wp.isfinite(dx):
         particle_q[p] = x + dx
         particle_qd[p] = particle_qd[p] + dx * inv_dt
+
+
+@wp.kernel
+def coarse_potential_at_particles(
+    fluid_particle: wp.array[wp.int32],
+    fluid_row: wp.array[wp.int32],
+    boxes: CoarseBoxes,
+    kind: wp.array[wp.int32],
+    phi: wp.array[float],
+    particle_q: wp.array[wp.vec3],
+    # outputs
+    potential: wp.array[float],
+):
+    """The last substep's potential at each fluid particle, read from the cells with fluid around it as the move
+    reads their gradients (0 where none)."""
+    t = wp.tid()
+    p = fluid_particle[t]
+    x = particle_q[p]
+    row = fluid_row[t]
+    n = boxes.dims[row]
+    if n[0] == 0 or not wp.isfinite(x):
+        return
+    value, total = read_cells_with_fluid(boxes, row, x, kind, phi, float(0.0))
+    if total > 0.0:
+        potential[p] = value / total
 
 
 @wp.kernel
@@ -732,6 +768,18 @@ class CoarseCorrection:
             outputs=[q, state_out.particle_qd],
             device=d,
         )
+
+    def potential_at(self, fluid_particle: wp.array, particle_q: wp.array) -> wp.array:
+        """The last substep's potential [m^2] at each particle of ``particle_q`` (0 for particles not fluid)."""
+        potential = wp.zeros(particle_q.shape[0], dtype=float, device=self.device)
+        wp.launch(
+            coarse_potential_at_particles,
+            dim=fluid_particle.shape[0],
+            inputs=[fluid_particle, self.fluid_row, self.boxes, self.kind, self.phi, particle_q],
+            outputs=[potential],
+            device=self.device,
+        )
+        return potential
 
     def forget(self, world_mask: wp.array, use_mask: int) -> None:
         """Start the potential of the worlds ``world_mask`` selects from zero at their next substep."""
