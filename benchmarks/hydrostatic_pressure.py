@@ -121,9 +121,8 @@ def run(args, device) -> dict:
         wp.synchronize_device(device)
         simulated += time.perf_counter() - tick
         lam_sum += solver.fluid_warm_start_multipliers.numpy().astype(np.float64) / args.warm_start
-        q_now = states[0].particle_q.numpy().astype(np.float64)
         coarse_sum += coarse_pressure(solver, states[0], rho_v, dt)
-        q_sum += q_now
+        q_sum += states[0].particle_q.numpy().astype(np.float64)
     wall = time.perf_counter() - start
     lam, q = lam_sum / frames, q_sum / frames
     edge = args.n * d

@@ -211,7 +211,8 @@ def run(args, device, full_signal: bool = False) -> dict:
     model, d = build(length, args.per_length, args.ratio, args.depth_particles, device, args.jitter, starts)
     layers = max(1, round(args.ratio * args.per_length))
     solver, frame, states, damping = tank_frames(args, model, d, device)
-    world = np.maximum(model.particle_world.numpy(), 0) if starts > 1 else np.zeros(model.particle_count, dtype=int)
+    # (a single tank's particles are global, world -1: its one mean is world 0's)
+    world = np.maximum(model.particle_world.numpy(), 0)
 
     start = time.perf_counter()
     settle(args, solver, frame, damping, "sloshing")
