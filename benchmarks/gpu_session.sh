@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/archive/performance_notebook.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|coarse-damping|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|exact-i2|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|coarse-damping|damping-interval|damping-interval-box|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|exact-i2|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
 set -u
 out=${1:?output folder}; shift
 export PYTHONUNBUFFERED=1
@@ -302,6 +302,37 @@ for what in "$@"; do
       python3 -m pytest -q -k cuda newton/tests/test_fluid_density_kernel.py newton/tests/test_fluid_coarse_correction.py \
         2>&1 | tail -1
       corrected_still_columns "" ;;
+    damping-interval)
+      # the non-affine damping once in each 1/120 s against every substep (the "before":
+      # docs/archive/patches/nonaffine_damping_every_substep.patch; docs/archive/performance_notebook.md "The damping
+      # once in four substeps"), alternated: the 100k dam break with viscosity 0 (the damping alone runs the velocity
+      # pass) and at the benchmark scene, the 1M one with viscosity 0, the 100k pool; then the CUDA tests of still water
+      p=docs/archive/patches/nonaffine_damping_every_substep.patch
+      for v in after before after2; do
+        [ $v = before ] && archived_patch on $p
+        echo "== $v"
+        python3 -m benchmarks dam_break --viscosity 0 --trials 3 \
+          --json "$out/dam_break_100k_viscosity_0_damping_${v}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+        python3 -m benchmarks dam_break --trials 3 --json "$out/dam_break_100k_damping_${v}_${gpu}.json" 2>&1 \
+          | grep -A1 '^device' | tail -1
+        if [ $v != after2 ]; then
+          python3 -m benchmarks dam_break --viscosity 0 --particles 1000000 --warmup-frames 20 --frames 10 --trials 3 \
+            --json "$out/dam_break_1m_viscosity_0_damping_${v}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+          python3 -m benchmarks rest_column --device cuda:0 --n 50 --layers 40 \
+            --json "$out/rest_column_50x50x40_damping_${v}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+        fi
+        [ $v = before ] && archived_patch off $p
+      done
+      python3 -m pytest -q -k cuda newton/tests/test_fluid_still_water.py 2>&1 | tail -3 ;;
+    damping-interval-box)
+      # the floating box's twelve starts 1 um apart with the damping once in each 1/120 s and every substep
+      p=docs/archive/patches/nonaffine_damping_every_substep.patch
+      for v in after before; do
+        [ $v = before ] && archived_patch on $p
+        python3 docs/validation/floating_box/repeat_runs.py --device cuda:0 --runs 12 --offset 1e-6 \
+          --json "$out/floating_box_offsets_damping_${v}_${gpu}.json" 2>&1 | grep '^damping'
+        [ $v = before ] && archived_patch off $p
+      done ;;
     box-runs)
       # the floating box of test_floating_box_comes_to_rest repeated at two non-affine dampings (its outcome on a GPU
       # changes from run to run; docs/validation.rst "Floating box"), and the 100k pool and dam break at each

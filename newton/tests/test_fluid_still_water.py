@@ -12,7 +12,7 @@ from newton.tests.unittest_utils import add_function_test, get_test_devices
 
 from newton._src.solvers.xpbd.fluid.calibration import jacobi_spectral_radius, stable_pass_bound, stable_relaxation
 from newton._src.solvers.xpbd.fluid.config import DEFAULT_NONAFFINE_DAMPING
-from newton._src.solvers.xpbd.fluid.velocity_passes import apply_fluid_viscosity
+from newton._src.solvers.xpbd.fluid.velocity_passes import apply_fluid_viscosity, damping_every
 from newton.examples.fluid.common import add_closed_box
 from newton.tests.test_solver_xpbd_fluid import D, Sim, add_block, make_model, pool_with_box, still_level
 
@@ -95,7 +95,8 @@ def velocity_pass(device, velocity, damping, viscosity=0.0, steps=1.0):
     wp.launch(
         apply_fluid_viscosity,
         dim=fluid.fluid_count,
-        inputs=[fluid.params, fluid.search.slots, fluid.sorted_v, fluid.density, steps],
+        # a clock that makes the damping due in this substep
+        inputs=[fluid.params, fluid.search.slots, fluid.sorted_v, fluid.density, fluid.damping_clock, 1, steps],
         outputs=[sim.state_0.particle_qd, fluid.vorticity],
         device=device,
     )
@@ -148,6 +149,29 @@ def test_nonaffine_damping_removes_particle_noise(test, device):
     # without the damping the pass leaves the velocities as they are
     _, v_off, after_off = velocity_pass(device, field, 0.0)
     np.testing.assert_array_equal(after_off, v_off.astype(np.float32))
+
+
+def test_nonaffine_damping_once_an_interval(test, device):
+    # about every 1/120 s: every 4th substep of 8 a 60 Hz frame, each substep of 2
+    test.assertEqual([damping_every(1.0 / (60.0 * s)) for s in (1, 2, 4, 8, 16)], [1, 1, 2, 4, 8])
+    removed = {}
+    for substeps in (8, 2):
+        # spaced apart, so no density correction moves the particles: only the damping changes a velocity
+        model = make_model(device, lambda b: add_block(b, (6, 6, 6), spacing=1.1 * D))
+        sim = Sim(model, substeps=substeps, fluid_nonaffine_damping=0.5)
+        noise = np.random.default_rng(6).normal(0.0, 0.01, size=(216, 3))
+        sim.state_0.particle_qd.assign(noise.astype(np.float32))
+        changes = []
+        for _ in range(substeps):
+            before = sim.qd()
+            sim.solver.step(sim.state_0, sim.state_1, None, None, sim.dt)
+            sim.state_0, sim.state_1 = sim.state_1, sim.state_0
+            changes.append(np.linalg.norm(sim.qd() - before))
+        due = [k for k, change in enumerate(changes) if change > 1.0e-3]
+        test.assertEqual(due, [3, 7] if substeps == 8 else [0, 1])
+        removed[substeps] = changes[due[0]]
+    # either way the first damping stands for 1/120 s: 1 - (1 - 0.5)^4 of the deviation goes
+    test.assertAlmostEqual(removed[8] / removed[2], 1.0, delta=0.01)
 
 
 def still_column(device, frames, **solver_kwargs):

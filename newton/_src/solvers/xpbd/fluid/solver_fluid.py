@@ -38,7 +38,6 @@ from .config import (
     EPSILON_RELATIVE,
     FULL_NEIGHBOR_FACTOR,
     MAX_CORRECTION_FRACTION,
-    NONAFFINE_DAMPING_STEP,
     FluidConfig,
     FluidTuning,
     fluid_memory_bytes,
@@ -82,8 +81,11 @@ from .reset import reset_diffuse_worlds, reset_fluid_worlds
 from .schedule import density_schedule
 from .sph import MAX_DISPLACEMENT_OFF, FluidParams, FluidSlots, SlotContent
 from .velocity_passes import (
+    advance_damping_clock,
     apply_fluid_viscosity,
     confine_vorticity_and_recover,
+    damping_every,
+    damping_steps,
     gather_fluid_state,
     recover_nonfinite_fluid,
 )
@@ -180,6 +182,8 @@ class FluidSolver:
             #: multiplier (x) and relative density rho / rho0 (y) of each slot, from the last density pass
             self.lambda_rho = wp.zeros(n, dtype=wp.vec2)
             self.sorted_v = wp.zeros(n, dtype=wp.vec3)
+            #: substeps since the last non-affine damping (:func:`.velocity_passes.damping_due`)
+            self.damping_clock = wp.zeros(1, dtype=wp.int32)
             # the slots again, with a second position buffer: a correction pass that knows how
             # SolverXPBD applies its deltas writes the applied positions there for the next pass
             self.xm_applied = wp.zeros(n, dtype=wp.vec4)
@@ -638,7 +642,16 @@ class FluidSolver:
         wp.launch(
             gather_fluid_state,
             dim=self.fluid_count,
-            inputs=[self.params, s.slots, state_out.particle_q, state_out.particle_qd, m.particle_mass, 0],
+            inputs=[
+                self.params,
+                s.slots,
+                state_out.particle_q,
+                state_out.particle_qd,
+                m.particle_mass,
+                0,
+                self.damping_clock,
+                1,
+            ],
             outputs=[self.sorted_v],
             device=self.device,
         )
@@ -672,23 +685,34 @@ class FluidSolver:
         )
 
     def _velocity_pass(self, state_out, dt: float) -> None:
-        """Viscosity, the non-affine damping of a substep of ``dt`` and the vorticity estimate (one neighbour loop)."""
+        """Viscosity, the non-affine damping when due after substeps of ``dt`` and the vorticity estimate (one neighbour loop)."""
         m, n = self.model, self.fluid_count
+        every = damping_every(dt)
         if self.slot_content is not SlotContent.APPLIED_WITH_VELOCITIES:
             wp.launch(
                 gather_fluid_state,
                 dim=n,
-                inputs=[self.params, self.slots, state_out.particle_q, state_out.particle_qd, m.particle_mass, 1],
+                inputs=[
+                    self.params,
+                    self.slots,
+                    state_out.particle_q,
+                    state_out.particle_qd,
+                    m.particle_mass,
+                    1,
+                    self.damping_clock,
+                    every,
+                ],
                 outputs=[self.sorted_v],
                 device=self.device,
             )
         wp.launch(
             apply_fluid_viscosity,
             dim=n,
-            inputs=[self.params, self.slots, self.sorted_v, self.density, dt / NONAFFINE_DAMPING_STEP],
+            inputs=[self.params, self.slots, self.sorted_v, self.density, self.damping_clock, every, damping_steps(dt)],
             outputs=[state_out.particle_qd, self.vorticity],
             device=self.device,
         )
+        wp.launch(advance_damping_clock, dim=1, inputs=[every], outputs=[self.damping_clock], device=self.device)
 
     def _vorticity_pass(self, state_out, dt: float) -> None:
         """Vorticity confinement (while on) and the non-finite recovery, in one pass."""

@@ -5,23 +5,47 @@
 
 :func:`apply_fluid_viscosity` blends each fluid particle's velocity toward its neighbourhood
 (XSPH) and removes a share of its deviation from the affine velocity field fitted to the
-neighbourhood; :func:`confine_vorticity_and_recover` adds vorticity confinement (Fedkiw et al. 2001)
+neighbourhood, the latter once in each interval of about ``NONAFFINE_DAMPING_INTERVAL``
+(:func:`damping_every`); :func:`confine_vorticity_and_recover` adds vorticity confinement (Fedkiw et al. 2001)
 and, as the substep's last pass, recovers particles whose state went non-finite.
 """
 
 import warp as wp
 
 from ....geometry import ParticleFlags
+from .config import NONAFFINE_DAMPING_INTERVAL, NONAFFINE_DAMPING_STEP
 from .sph import FluidParams, FluidSlots, fluid_neighbor, fluid_neighbor_layout, neighbor_sum, poly6, spiky_gradient
 
 # approximate division and square root in CUDA code (no effect on the CPU; see :mod:`.sph`)
 wp.set_module_options({"fast_math": True})
 
 
+def damping_every(dt: float) -> int:
+    """Substeps of ``dt`` [s] from one non-affine damping to the next: the count nearest ``NONAFFINE_DAMPING_INTERVAL``, at least 1."""
+    return max(1, round(NONAFFINE_DAMPING_INTERVAL / dt))
+
+
+def damping_steps(dt: float) -> float:
+    """Reference steps (``NONAFFINE_DAMPING_STEP``) that one damping of substeps of ``dt`` [s] stands for."""
+    return damping_every(dt) * dt / NONAFFINE_DAMPING_STEP
+
+
 @wp.func
-def velocity_pass_on(p: FluidParams):
-    """Whether the velocity pass runs: for viscosity, the non-affine damping, or the vorticity estimate of confinement."""
-    return p.viscosity > 0.0 or p.nonaffine_damping > 0.0 or p.vorticity > 0.0
+def damping_due(clock: wp.array[wp.int32], every: int):
+    """Whether this substep applies the non-affine damping: the last of each ``every`` substeps."""
+    return clock[0] % every == every - 1
+
+
+@wp.func
+def velocity_pass_on(p: FluidParams, due: bool):
+    """Whether the velocity pass runs: for viscosity, the vorticity estimate of confinement, or a damping that is ``due``."""
+    return p.viscosity > 0.0 or p.vorticity > 0.0 or (p.nonaffine_damping > 0.0 and due)
+
+
+@wp.kernel
+def advance_damping_clock(every: int, clock: wp.array[wp.int32]):
+    """Count the substep toward the next non-affine damping (on the device, so that a captured step keeps count)."""
+    clock[0] = (clock[0] + 1) % every
 
 
 @wp.kernel
@@ -32,15 +56,20 @@ def gather_fluid_state(
     particle_qd: wp.array[wp.vec3],
     particle_mass: wp.array[float],
     for_velocity_pass: int,
+    clock: wp.array[wp.int32],
+    damping_every: int,
     # outputs
     sorted_v: wp.array[wp.vec3],
 ):
-    """Gather positions, masses and velocities into slot order (for the velocity pass: only if it runs)."""
+    """Gather positions, masses and velocities into slot order (for the velocity pass: only if it runs).
+
+    ``clock`` and ``damping_every`` say whether the damping is due (:func:`damping_due`); read only for the velocity pass.
+    """
     i = wp.tid()
     pi = slots.particle[i]
     if pi < 0:
         return
-    if for_velocity_pass != 0 and not velocity_pass_on(params[0]):
+    if for_velocity_pass != 0 and not velocity_pass_on(params[0], damping_due(clock, damping_every)):
         return
     x = particle_q[pi]
     slots.xm[i] = wp.vec4(x[0], x[1], x[2], particle_mass[pi])
@@ -73,6 +102,8 @@ def apply_fluid_viscosity(
     slots: FluidSlots,
     sorted_v: wp.array[wp.vec3],
     density: wp.array[float],
+    clock: wp.array[wp.int32],
+    damping_every: int,
     damping_steps: float,
     # outputs
     particle_qd: wp.array[wp.vec3],
@@ -84,9 +115,10 @@ def apply_fluid_viscosity(
     velocity: ``v_i <- v_i + nu (sum_j V_j W_ij v_j / sum_j V_j W_ij - v_i)`` with ``V_j = m_j / rho_j``,
     the sums including ``j = i``. The non-affine damping removes the share ``beta`` of the velocity's
     deviation from the affine field fitted to the neighbourhood with the same weights
-    (:func:`affine_velocity_at_particle`): ``v_i <- v_i + beta (v_aff(x_i) - v_i)``, where a substep of
-    ``damping_steps`` reference steps (``NONAFFINE_DAMPING_STEP``) takes ``beta = 1 - (1 - damping)^steps``:
-    the damping per second does not depend on the substep count. Motion the kernel
+    (:func:`affine_velocity_at_particle`): ``v_i <- v_i + beta (v_aff(x_i) - v_i)``. It is applied on the
+    last of each ``damping_every`` substeps (:func:`damping_due` of ``clock``), which stand for
+    ``damping_steps`` reference steps (``NONAFFINE_DAMPING_STEP``), with ``beta = 1 - (1 - damping)^steps``:
+    the damping per second follows neither the substep count nor how often it is applied. Motion the kernel
     resolves (translation, rotation, shear, expansion across ``h``) is left alone; what goes is the
     particle-scale jitter no smooth field carries. Both act on the velocities of the step's result.
     With vorticity confinement on, the same loop also estimates the vorticity
@@ -98,10 +130,11 @@ def apply_fluid_viscosity(
         return
     p = params[0]
     # checked here rather than by a conditional graph node, which costs more than this launch
-    if not velocity_pass_on(p):
+    due = damping_due(clock, damping_every)
+    if not velocity_pass_on(p, due):
         return
     compute_vorticity = p.vorticity > 0.0
-    fit_affine = p.nonaffine_damping > 0.0
+    fit_affine = p.nonaffine_damping > 0.0 and due
     xi4 = slots.xm[i]
     xi = wp.vec3(xi4[0], xi4[1], xi4[2])
     vi = sorted_v[i]
