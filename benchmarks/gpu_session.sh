@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/archive/performance_notebook.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|coarse-damping|damping-interval|damping-interval-box|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|exact-i2|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|coarse-damping|damping-interval|damping-interval-box|damping-interval-wave|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|exact-i2|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
 set -u
 out=${1:?output folder}; shift
 export PYTHONUNBUFFERED=1
@@ -331,6 +331,20 @@ for what in "$@"; do
         [ $v = before ] && archived_patch on $p
         python3 docs/validation/floating_box/repeat_runs.py --device cuda:0 --runs 12 --offset 1e-6 \
           --json "$out/floating_box_offsets_damping_${v}_${gpu}.json" 2>&1 | grep '^damping'
+        [ $v = before ] && archived_patch off $p
+      done ;;
+    damping-interval-wave)
+      # the standing wave with the damping once in each 1/120 s and every substep (the archived patch), at the
+      # defaults: 20 per L over 64 starts (the scatter from start to start against the change) and 160 per L, the
+      # period read from the crossings and from the extremes (docs/validation.rst, "Still water and floating bodies")
+      p=docs/archive/patches/nonaffine_damping_every_substep.patch
+      for v in after before; do
+        [ $v = before ] && archived_patch on $p
+        echo "== $v"
+        python3 -m benchmarks sloshing --device cuda:0 --per-length 20 --depth-particles 8 --starts 64 \
+          --json "$out/sloshing_starts_n20_damping_${v}_${gpu}.json" 2>&1 | grep -A2 '^device' | tail -2
+        python3 -m benchmarks sloshing --device cuda:0 --per-length 160 --depth-particles 8 \
+          --json "$out/sloshing_n160_damping_${v}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
         [ $v = before ] && archived_patch off $p
       done ;;
     box-runs)

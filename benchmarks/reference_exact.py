@@ -244,6 +244,7 @@ def measure(args, method: str) -> dict:
     result = analyse(t, s, args.periods)
     row.update(result)
     row["period_error"] = result["period_s"] / row["theory_period_s"] - 1.0
+    row["period_error_extremes"] = result["period_from_extremes_s"] / row["theory_period_s"] - 1.0
     row["signal_m"] = s.tolist()
     return row
 
