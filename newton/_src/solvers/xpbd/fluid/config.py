@@ -28,7 +28,7 @@ NONAFFINE_DAMPING_STEP = 1.0 / 480.0
 
 # the time from one non-affine damping to the next [s]: applied once in each such interval of substeps, it
 # costs a quarter of its pass at 8 substeps a 60 Hz frame; the CPU's still columns are as calm as with it every
-# substep, the 100k pool a little less, and the defaults' standing wave runs 3 points faster
+# substep, the 100k pool a little less, and the defaults' standing wave changes by under a point of period
 # (docs/archive/validation_notebook.md, "The damping once in four substeps")
 NONAFFINE_DAMPING_INTERVAL = 4.0 * NONAFFINE_DAMPING_STEP
 
