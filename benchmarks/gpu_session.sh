@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/archive/performance_notebook.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|coarse-damping|damping-interval|damping-interval-box|damping-interval-wave|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|exact-i2|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|coarse-damping|damping-interval|damping-interval-box|damping-interval-wave|damping-interval-pool|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|exact-i2|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
 set -u
 out=${1:?output folder}; shift
 export PYTHONUNBUFFERED=1
@@ -346,6 +346,17 @@ for what in "$@"; do
         python3 -m benchmarks sloshing --device cuda:0 --per-length 160 --depth-particles 8 \
           --json "$out/sloshing_n160_damping_${v}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
         [ $v = before ] && archived_patch off $p
+      done ;;
+    damping-interval-pool)
+      # the 100k pool (50 x 50 x 40) three times with the damping once in each 1/120 s and three times every
+      # substep, alternated: whether the interval costs the pool its calm beyond the run-to-run spread of a GPU
+      p=docs/archive/patches/nonaffine_damping_every_substep.patch
+      for v in after_1 before_1 after_2 before_2 after_3 before_3; do
+        [ ${v%_*} = before ] && archived_patch on $p
+        echo "== $v"
+        python3 -m benchmarks rest_column --device cuda:0 --n 50 --layers 40 \
+          --json "$out/rest_column_50x50x40_damping_${v}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+        [ ${v%_*} = before ] && archived_patch off $p
       done ;;
     box-runs)
       # the floating box of test_floating_box_comes_to_rest repeated at two non-affine dampings (its outcome on a GPU
