@@ -348,15 +348,18 @@ for what in "$@"; do
         [ $v = before ] && archived_patch off $p
       done ;;
     damping-interval-pool)
-      # the 100k pool (50 x 50 x 40) three times with the damping once in each 1/120 s and three times every
-      # substep, alternated: whether the interval costs the pool its calm beyond the run-to-run spread of a GPU
+      # the 100k pool (50 x 50 x 40) with the damping once in each 1/120 s and every substep, alternated, from
+      # three starts: a GPU repeats a run bitwise (three runs of one start read the same on 2026-11-29), so the
+      # spread is read over starts moved by a micrometre (--offset)
       p=docs/archive/patches/nonaffine_damping_every_substep.patch
-      for v in after_1 before_1 after_2 before_2 after_3 before_3; do
-        [ ${v%_*} = before ] && archived_patch on $p
-        echo "== $v"
-        python3 -m benchmarks rest_column --device cuda:0 --n 50 --layers 40 \
-          --json "$out/rest_column_50x50x40_damping_${v}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
-        [ ${v%_*} = before ] && archived_patch off $p
+      for offset in 0 0.00002 0.00004; do
+        for v in after before; do
+          [ $v = before ] && archived_patch on $p
+          echo "== $v, offset $offset spacings"
+          python3 -m benchmarks rest_column --device cuda:0 --n 50 --layers 40 --offset $offset \
+            --json "$out/rest_column_50x50x40_damping_${v}_offset_${offset}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+          [ $v = before ] && archived_patch off $p
+        done
       done ;;
     box-runs)
       # the floating box of test_floating_box_comes_to_rest repeated at two non-affine dampings (its outcome on a GPU

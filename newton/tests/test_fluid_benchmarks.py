@@ -173,6 +173,25 @@ def test_rest_column_splits_speed_by_scale(test, device):
         sys.path.remove(str(ROOT))
 
 
+def test_rest_column_offset_moves_the_start(test, device):
+    # rest_column --offset: another draw of the same still water, the column's start moved along x alone
+    if not HAS_BENCHMARKS:
+        test.skipTest("benchmarks/ is part of the source checkout, not of the installed wheel")
+    sys.path.insert(0, str(ROOT))
+    try:
+        import numpy as np  # noqa: PLC0415
+
+        from benchmarks.rest_column import SPACING, build  # noqa: PLC0415
+
+        at_rest = build(3, 2, device).particle_q.numpy()
+        moved = build(3, 2, device, offset=0.02).particle_q.numpy()
+        np.testing.assert_allclose(moved[:, 0] - at_rest[:, 0], 0.02 * SPACING, rtol=1e-4)
+        np.testing.assert_array_equal(moved[:, 1:], at_rest[:, 1:])
+        test.assertIn("--offset", case_parser("rest_column").format_help())
+    finally:
+        sys.path.remove(str(ROOT))
+
+
 class TestFluidBenchmarks(unittest.TestCase):
     pass
 
