@@ -8,7 +8,8 @@ floor of a closed box of frictionless walls 1.5 times the column's height, at 60
 x ``--iterations`` and the solver's default keywords unless their flags are given (``--viscosity``,
 ``--density-ramp``, ``--relaxation``, ``--nonaffine-damping``, ...: every keyword, named after it). After ``--settle`` seconds it measures for ``--measure`` seconds: the RMS and largest particle
 speed (sampled every frame), the mean and largest displacement [spacings], the height span of the top
-layer [spacings], the fluid's own density error and the total energy per unit mass (kinetic plus
+layer [spacings] (of the particles that started in it, ``top``, and of the surface, the top particle of each
+column of cells ``SURFACE_CELL`` spacings wide, ``surf``), the fluid's own density error and the total energy per unit mass (kinetic plus
 g z) at the start and end of the measurement, and the fluid's true number density in the interior (the
 particles at least one smoothing length from every wall and from the top, by their Voronoi cells; a
 kernel sum reads a disordered packing differently from the lattice it was calibrated on, so this is
@@ -44,6 +45,7 @@ from .run_record import write_record
 SPACING = 0.05  # [m]
 GRAVITY = 9.81  # [m/s^2]
 CELL = 4  # cells of the velocity's split by scale [spacings]
+SURFACE_CELL = 2  # cells whose top particles are the surface [spacings]
 
 
 def build(n: int, layers: int, device, offset: float = 0.0):
@@ -58,6 +60,21 @@ def build(n: int, layers: int, device, offset: float = 0.0):
     model = builder.finalize(device=device)
     model.soft_contact_mu = 0.0
     return model
+
+
+def surface_span(q: np.ndarray, d: float, cell: float = SURFACE_CELL) -> float:
+    """The height span [spacings] of the fluid's surface: the top particle of each column of cells ``cell``
+    spacings wide.
+
+    Unlike the span of the particles that started in the top layer, a top-layer particle that has settled into a
+    hollow below its neighbours does not count, and the particle that took its place does. Cells of two spacings
+    hold a top particle each however the layer has moved.
+    """
+    cell = np.floor(q[:, :2] / (cell * d)).astype(np.int64)
+    key = cell[:, 0] * 1_000_003 + cell[:, 1]
+    order = np.lexsort((q[:, 2], key))
+    last = np.r_[key[order][1:] != key[order][:-1], True]
+    return float(np.ptp(q[order][last, 2]) / d)
 
 
 def energy(state) -> float:
@@ -146,6 +163,7 @@ def run(args, device) -> dict:
         "mean_displacement_spacings": float(moved.mean()),
         "max_displacement_spacings": float(moved.max()),
         "top_layer_span_spacings": float(np.ptp(q[top, 2]) / d),
+        "surface_span_spacings": surface_span(q, d),
         "energy_start_J_kg": energy_start,
         "energy_end_J_kg": energy(states[0]),
         "mean_abs_density_error": stats["mean_abs_density_error"],
@@ -180,13 +198,14 @@ def main(argv=None):
         r = run(args, device)
     print(
         f"{'device':<24}{'particles':>10}{'sub x it':>9}{'rms m/s':>9}{'max m/s':>9}{'mean d':>8}{'max d':>7}"
-        f"{'top':>6}{'mean|e|':>9}{'max c':>7}{'inner n':>9}{'poly6':>8}{'whole':>8}{'long':>8}{'fine':>8}"
+        f"{'top':>6}{'surf':>6}{'mean|e|':>9}{'max c':>7}{'inner n':>9}{'poly6':>8}{'whole':>8}{'long':>8}{'fine':>8}"
     )
     name = device.name if device.is_cuda else "cpu"
     print(
         f"{name:<24}{r['particles']:>10}{r['substeps']:>5} x {r['iterations']:<1}{r['rms_speed_m_s']:>9.4f}"
         f"{r['max_speed_m_s']:>9.3f}{r['mean_displacement_spacings']:>8.3f}{r['max_displacement_spacings']:>7.2f}"
-        f"{r['top_layer_span_spacings']:>6.2f}{100 * r['mean_abs_density_error']:>8.2f}%{100 * r['max_compression']:>6.2f}%"
+        f"{r['top_layer_span_spacings']:>6.2f}{r['surface_span_spacings']:>6.2f}"
+        f"{100 * r['mean_abs_density_error']:>8.2f}%{100 * r['max_compression']:>6.2f}%"
         f"{_ratio(r['interior_number_density']):>9}{_ratio(r['interior_poly6_density']):>8}"
         f"{r['rms_whole_m_s']:>8.4f}{r['rms_long_waves_m_s']:>8.4f}{r['rms_particle_scale_m_s']:>8.4f}"
     )

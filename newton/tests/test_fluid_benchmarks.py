@@ -173,6 +173,35 @@ def test_rest_column_splits_speed_by_scale(test, device):
         sys.path.remove(str(ROOT))
 
 
+def test_rest_column_reads_the_surface(test, device):
+    # the surface's span: the top particle of each column of cells two spacings wide, whichever particles they are
+    if not HAS_BENCHMARKS:
+        test.skipTest("benchmarks/ is part of the source checkout, not of the installed wheel")
+    sys.path.insert(0, str(ROOT))
+    try:
+        import numpy as np  # noqa: PLC0415
+
+        from benchmarks.rest_column import surface_span  # noqa: PLC0415
+
+        d = 0.05
+        g = (np.arange(6) + 0.5) * d
+        q = np.stack(np.meshgrid(g, g, g, indexing="ij"), axis=-1).reshape(-1, 3)
+        test.assertAlmostEqual(surface_span(q, d), 0.0, places=9)
+        # a top particle sunk into a hollow: its cell's neighbours still stand at the top
+        top = np.flatnonzero(np.isclose(q[:, 2], g[-1]))
+        sunk = q.copy()
+        sunk[top[0], 2] -= 0.7 * d
+        test.assertAlmostEqual(surface_span(sunk, d), 0.0, places=9)
+        # a particle raised half a spacing, and a whole cell's top layer gone
+        raised = q.copy()
+        raised[top[0], 2] += 0.5 * d
+        test.assertAlmostEqual(surface_span(raised, d), 0.5, places=6)
+        cell = (q[:, 0] < 2 * d) & (q[:, 1] < 2 * d) & np.isclose(q[:, 2], g[-1])
+        test.assertAlmostEqual(surface_span(q[~cell], d), 1.0, places=6)
+    finally:
+        sys.path.remove(str(ROOT))
+
+
 def test_rest_column_offset_moves_the_start(test, device):
     # rest_column --offset: another draw of the same still water, the column's start moved along x alone
     if not HAS_BENCHMARKS:
