@@ -145,80 +145,72 @@ def test_every_case_writes_the_same_record(test, device):
         sys.path.remove(str(ROOT))
 
 
-def test_rest_column_splits_speed_by_scale(test, device):
-    # rest_column's split of the RMS speed: a lattice of 8^3 particles in cells of 4 x 4 x 4
+@contextlib.contextmanager
+def rest_column_module(test):
+    """``benchmarks.rest_column`` imported from the source checkout (the test skips without one)."""
     if not HAS_BENCHMARKS:
         test.skipTest("benchmarks/ is part of the source checkout, not of the installed wheel")
     sys.path.insert(0, str(ROOT))
     try:
-        import numpy as np  # noqa: PLC0415
+        yield importlib.import_module("benchmarks.rest_column")
+    finally:
+        sys.path.remove(str(ROOT))
 
-        from benchmarks.rest_column import velocity_scales  # noqa: PLC0415
 
+def test_rest_column_splits_speed_by_scale(test, device):
+    # rest_column's split of the RMS speed: a lattice of 8^3 particles in cells of 4 x 4 x 4
+    import numpy as np  # noqa: PLC0415
+
+    with rest_column_module(test) as rest_column:
         g = (np.arange(8) + 0.5) * 0.1
         q = np.stack(np.meshgrid(g, g, g, indexing="ij"), axis=-1).reshape(-1, 3)
         cell = 0.4
         # the fluid moving together
         v = np.tile([0.3, 0.0, -0.4], (len(q), 1))
-        np.testing.assert_allclose(velocity_scales(q, v, cell), (0.5, 0.0, 0.0), atol=1e-12)
+        np.testing.assert_allclose(rest_column.velocity_scales(q, v, cell), (0.5, 0.0, 0.0), atol=1e-12)
         # cells moving against each other, each one rigidly: a long wave
         v = np.zeros_like(q)
         v[:, 2] = np.where(q[:, 0] < cell, 0.2, -0.2)
-        np.testing.assert_allclose(velocity_scales(q, v, cell), (0.0, 0.2, 0.0), atol=1e-12)
+        np.testing.assert_allclose(rest_column.velocity_scales(q, v, cell), (0.0, 0.2, 0.0), atol=1e-12)
         # neighbours moving against each other: particle scale
         v = np.zeros_like(q)
         v[:, 1] = 0.1 * (-1.0) ** np.arange(len(q))
-        np.testing.assert_allclose(velocity_scales(q, v, cell), (0.0, 0.0, 0.1), atol=1e-12)
-    finally:
-        sys.path.remove(str(ROOT))
+        np.testing.assert_allclose(rest_column.velocity_scales(q, v, cell), (0.0, 0.0, 0.1), atol=1e-12)
 
 
 def test_rest_column_reads_the_surface(test, device):
     # the surface's span: the top particle of each column of cells two spacings wide, whichever particles they are
-    if not HAS_BENCHMARKS:
-        test.skipTest("benchmarks/ is part of the source checkout, not of the installed wheel")
-    sys.path.insert(0, str(ROOT))
-    try:
-        import numpy as np  # noqa: PLC0415
+    import numpy as np  # noqa: PLC0415
 
-        from benchmarks.rest_column import surface_span  # noqa: PLC0415
-
+    with rest_column_module(test) as rest_column:
+        span = rest_column.surface_span
         d = 0.05
         g = (np.arange(6) + 0.5) * d
         q = np.stack(np.meshgrid(g, g, g, indexing="ij"), axis=-1).reshape(-1, 3)
-        test.assertAlmostEqual(surface_span(q, d), 0.0, places=9)
+        test.assertAlmostEqual(span(q, d), 0.0, places=9)
         # a top particle sunk into a hollow: its cell's neighbours still stand at the top
         top = np.flatnonzero(np.isclose(q[:, 2], g[-1]))
         sunk = q.copy()
         sunk[top[0], 2] -= 0.7 * d
-        test.assertAlmostEqual(surface_span(sunk, d), 0.0, places=9)
+        test.assertAlmostEqual(span(sunk, d), 0.0, places=9)
         # a particle raised half a spacing, and a whole cell's top layer gone
         raised = q.copy()
         raised[top[0], 2] += 0.5 * d
-        test.assertAlmostEqual(surface_span(raised, d), 0.5, places=6)
+        test.assertAlmostEqual(span(raised, d), 0.5, places=6)
         cell = (q[:, 0] < 2 * d) & (q[:, 1] < 2 * d) & np.isclose(q[:, 2], g[-1])
-        test.assertAlmostEqual(surface_span(q[~cell], d), 1.0, places=6)
-    finally:
-        sys.path.remove(str(ROOT))
+        test.assertAlmostEqual(span(q[~cell], d), 1.0, places=6)
 
 
 def test_rest_column_offset_moves_the_start(test, device):
     # rest_column --offset: another draw of the same still water, the column's start moved along x alone
-    if not HAS_BENCHMARKS:
-        test.skipTest("benchmarks/ is part of the source checkout, not of the installed wheel")
-    sys.path.insert(0, str(ROOT))
-    try:
-        import numpy as np  # noqa: PLC0415
+    import numpy as np  # noqa: PLC0415
 
-        from benchmarks.rest_column import SPACING, build  # noqa: PLC0415
-
-        at_rest = build(3, 2, device).particle_q.numpy()
-        moved = build(3, 2, device, offset=0.02).particle_q.numpy()
-        np.testing.assert_allclose(moved[:, 0] - at_rest[:, 0], 0.02 * SPACING, rtol=1e-4)
+    with rest_column_module(test) as rest_column:
+        at_rest = rest_column.build(3, 2, device).particle_q.numpy()
+        moved = rest_column.build(3, 2, device, offset=0.02).particle_q.numpy()
+        np.testing.assert_allclose(moved[:, 0] - at_rest[:, 0], 0.02 * rest_column.SPACING, rtol=1e-4)
         np.testing.assert_array_equal(moved[:, 1:], at_rest[:, 1:])
         test.assertIn("--offset", case_parser("rest_column").format_help())
-    finally:
-        sys.path.remove(str(ROOT))
 
 
 class TestFluidBenchmarks(unittest.TestCase):
