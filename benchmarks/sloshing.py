@@ -124,11 +124,14 @@ def crossings(t: np.ndarray, s: np.ndarray) -> np.ndarray:
     return t[i] - s[i] * (t[i + 1] - t[i]) / (s[i + 1] - s[i])
 
 
-def extreme_time(t: np.ndarray, s: np.ndarray, a: float, b: float) -> float:
-    """Time [s] of the largest ``|s|`` between ``a`` and ``b``, refined by the parabola through it and its two
-    samples beside it."""
+def peak_index(t: np.ndarray, s: np.ndarray, a: float, b: float) -> int:
+    """Index of the largest ``|s|`` between ``a`` and ``b``."""
     inside = np.nonzero((t >= a) & (t <= b))[0]
-    i = int(inside[np.argmax(np.abs(s[inside]))])
+    return int(inside[np.argmax(np.abs(s[inside]))])
+
+
+def peak_time(t: np.ndarray, s: np.ndarray, i: int) -> float:
+    """Time [s] of the extreme at sample ``i``, refined by the parabola through it and its two samples beside it."""
     if i == 0 or i == len(t) - 1:
         return float(t[i])
     curvature = s[i - 1] - 2.0 * s[i] + s[i + 1]
@@ -148,9 +151,8 @@ def analyse(t: np.ndarray, s: np.ndarray, periods: int, floor: float = 0.1) -> d
     # (t = 0 itself is the start's zero, not a crossing)
     zeros = crossings(t[1:], s[1:])
     bounds = np.concatenate([[0.0], zeros])
-    extremes = np.asarray(
-        [float(np.abs(s[(t >= a) & (t <= b)]).max()) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
-    )
+    peaks = [peak_index(t, s, a, b) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+    extremes = np.abs(s[peaks]).astype(np.float64)
     if len(extremes) == 0:
         return {
             "periods_measured": 0,
@@ -167,8 +169,7 @@ def analyse(t: np.ndarray, s: np.ndarray, periods: int, floor: float = 0.1) -> d
     # half periods between crossings; the first runs from t = 0, a quarter period before the first extreme
     half = np.diff(zeros)[: max(0, above - 1)]
     # and between the extremes of the same half periods
-    at = np.asarray([extreme_time(t, s, a, b) for a, b in zip(bounds[:above], bounds[1 : above + 1], strict=True)])
-    half_extremes = np.diff(at)
+    half_extremes = np.diff([peak_time(t, s, i) for i in peaks[:above]])
     kept = extremes[2:] / extremes[:-2]
     return {
         "periods_measured": float(len(half) / 2),
