@@ -103,6 +103,7 @@ BAD_ARGUMENTS = [
     ("fluid_max_iterations", -2),
     ("fluid_max_iterations", 65),
     ("fluid_warm_start", -0.1),
+    ("fluid_warm_start", 0.6),
     ("fluid_warm_start", 1.0),
 ]
 

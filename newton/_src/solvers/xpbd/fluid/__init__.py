@@ -335,7 +335,7 @@ _FLUID_DOC = """
             fluid_max_displacement: Longest travel of a fluid particle in one substep [rest distances], > 0 or
                 ``inf`` (no limit). Defaults to ``inf``.
             fluid_warm_start: Share of a substep's summed density multipliers the next substep starts from
-                [dimensionless], in [0, 1); 0 is off, and only a solver created with a value > 0 can change it
+                [dimensionless], in [0, 0.5]; 0 is off, and only a solver created with a value > 0 can change it
                 later. Defaults to 0.
             max_diffuse_particles: Capacity of the diffuse (spray, foam, bubble) particle buffer, >= 0; 0 is off.
                 Defaults to 0.

@@ -45,6 +45,13 @@ MAX_CORRECTION_FRACTION = 0.5
 DEFAULT_COARSE_CELL = 3.0
 
 
+# largest fluid_warm_start: the carried sum includes what was carried, so under a steady load it is share / (1 -
+# share) times what the passes add, and it keeps pushing after the load has gone; above a half (more than the
+# passes' own) still water is churned (0.7: 0.022 m/s RMS in the 24-layer column, six times the defaults') and
+# thrown apart (0.9: 0.81 m/s; docs/formulation.rst, "Warm start")
+MAX_WARM_START = 0.5
+
+
 # largest fluid_density_ramp: a ramp over 1 % compression would hold every loaded particle 0.5 % more compressed
 MAX_DENSITY_RAMP = 0.01
 
@@ -172,7 +179,7 @@ class FluidConfig:
             infinite = isinstance(value, numbers.Real) and not isinstance(value, bool) and value == math.inf
             v = math.inf if infinite else real_in_range(name, value, 0.0, lo_open=True)
         elif name == "fluid_warm_start":
-            v = real_in_range(name, value, 0.0, 1.0, hi_open=True)
+            v = real_in_range(name, value, 0.0, MAX_WARM_START)
         elif name == "fluid_relaxation":
             # None: the solver's stable step for its kernel and pass count (FluidSolver.default_relaxation)
             v = None if value is None else real_in_range(name, value, 0.0, 2.0, lo_open=True)
