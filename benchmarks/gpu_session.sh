@@ -384,7 +384,8 @@ for what in "$@"; do
       still 24x24x40_settle_37 --n 24 --layers 40 --settle 37
       still 24x24x40_i4_settle_17 --n 24 --layers 40 --iterations 4 --settle 17
       still 24x24x40_coarse_correction_0.5_settle_17 --n 24 --layers 40 --coarse-correction 0.5 --settle 17
-      for ws in 0.5 0.9; do still 50x50x40_warm_start_${ws}_settle_17 --n 50 --layers 40 --warm-start $ws --settle 17; done
+      # (0.9, recorded on 2026-11-29, is refused since: fluid_warm_start stops at 0.5)
+      still 50x50x40_warm_start_0.5_settle_17 --n 50 --layers 40 --warm-start 0.5 --settle 17
       for settle in 2 7 12 27; do
         still 50x50x40_coarse_correction_0.5_settle_$settle --n 50 --layers 40 --coarse-correction 0.5 --settle $settle
       done
