@@ -365,11 +365,9 @@ for what in "$@"; do
     pool-settle)
       # the 100k pool measured later than issue #23's window, 3 s from each settling time: it does not come to rest
       # (docs/validation.rst, "The deep pool's pump")
-      for settle in 7 17 27 57; do
-        echo "== settled $settle s"
-        python3 -m benchmarks rest_column --device cuda:0 --n 50 --layers 40 --settle $settle \
-          --json "$out/rest_column_50x50x40_settle_${settle}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
-      done ;;
+      # (one run measured over each window; the records of 2026-11-29 are a run each, the same numbers)
+      python3 -m benchmarks rest_column --device cuda:0 --n 50 --layers 40 --settle 2 7 17 27 57 \
+        --json "$out/rest_column_50x50x40_settle_windows_${gpu}.json" 2>&1 | grep -A5 '^device' ;;
     pool-pump)
       # what keeps the pool moving: width and depth at 17 s, more passes, the warm start, the coarse correction
       # (poly6) from 2 s to 27 s, and the correction's cost on the dam breaks (docs/validation.rst, "The deep pool's pump")
@@ -386,9 +384,8 @@ for what in "$@"; do
       still 24x24x40_coarse_correction_0.5_settle_17 --n 24 --layers 40 --coarse-correction 0.5 --settle 17
       # (0.9, recorded on 2026-11-29, is refused since: fluid_warm_start stops at 0.5)
       still 50x50x40_warm_start_0.5_settle_17 --n 50 --layers 40 --warm-start 0.5 --settle 17
-      for settle in 2 7 12 27; do
-        still 50x50x40_coarse_correction_0.5_settle_$settle --n 50 --layers 40 --coarse-correction 0.5 --settle $settle
-      done
+      python3 -m benchmarks rest_column --device cuda:0 --n 50 --layers 40 --coarse-correction 0.5 --settle 2 7 12 27 \
+        --json "$out/rest_column_50x50x40_coarse_correction_0.5_settle_windows_${gpu}.json" 2>&1 | grep -A4 '^device'
       for v in "" "--coarse-correction 0.5"; do
         tag=${v//[ -]/_}; echo "== dam break $v"
         python3 -m benchmarks dam_break $v --trials 3 --json "$out/dam_break_100k_poly6${tag}_${gpu}.json" 2>&1 \

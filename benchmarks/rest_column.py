@@ -6,7 +6,8 @@
 A lattice of ``--n`` x ``--n`` x ``--layers`` fluid particles (spacing 0.05 m, 1000 kg/m^3) fills the
 floor of a closed box of frictionless walls 1.5 times the column's height, at 60 Hz with ``--substeps``
 x ``--iterations`` and the solver's default keywords unless their flags are given (``--viscosity``,
-``--density-ramp``, ``--relaxation``, ``--nonaffine-damping``, ...: every keyword, named after it). After ``--settle`` seconds it measures for ``--measure`` seconds: the RMS and largest particle
+``--density-ramp``, ``--relaxation``, ``--nonaffine-damping``, ...: every keyword, named after it). After ``--settle`` seconds it measures for ``--measure`` seconds (with several
+``--settle`` times, one run measures over each window in turn, each read as a run from its time alone would be): the RMS and largest particle
 speed (sampled every frame), the mean and largest displacement [spacings], the height span of the top
 layer [spacings] (of the particles that started in it, ``top``, and of the surface, the top particle of each
 column of cells ``SURFACE_CELL`` spacings wide, ``surf``), the fluid's own density error and the total energy per unit mass (kinetic plus
@@ -22,7 +23,8 @@ cell's (the particle-scale churn). The targets of issue #23: RMS below 0.005 m/s
 
 Usage::
 
-    python -m benchmarks rest_column [--n 12 --layers 24] [--substeps 8 --iterations 2] [--offset 0.01] [--json out.json]
+    python -m benchmarks rest_column [--n 12 --layers 24] [--substeps 8 --iterations 2] [--offset 0.01]
+        [--settle 2 7 12 17] [--json out.json]
 """
 
 from __future__ import annotations
@@ -119,15 +121,14 @@ def interior_density(q: np.ndarray, d: float, h: float) -> dict:
     }
 
 
-def run(args, device) -> dict:
-    d = SPACING
-    model = build(args.n, args.layers, device, args.offset)
-    solver, frame = contact_frames(model, args, d, device)
-    states = frame.states
+def measure_window(model, solver, frame, args, d: float, settle_s: float, frames_done: int) -> dict:
+    """Step from frame ``frames_done`` to ``settle_s`` and measure the next ``args.measure`` seconds.
 
-    settle, measure = round(args.settle * 60.0), round(args.measure * 60.0)
-    start = time.perf_counter()
-    for _ in track(range(settle), "rest_column: settling", unit="frame"):
+    See the module's docstring for the readings.
+    """
+    states = frame.states
+    measure = round(args.measure * 60.0)
+    for _ in track(range(round(settle_s * 60.0) - frames_done), "rest_column: settling", unit="frame"):
         frame()
     settled = states[0].particle_q.numpy().astype(np.float64)
     energy_start = energy(states[0])
@@ -140,21 +141,14 @@ def run(args, device) -> dict:
         fastest = max(fastest, float(speed.max()))
         scales.append(velocity_scales(states[0].particle_q.numpy().astype(np.float64), v, CELL * d))
     whole, long_waves, fine = np.mean(scales, axis=0)
-    wall = time.perf_counter() - start
     q = states[0].particle_q.numpy().astype(np.float64)
     moved = np.linalg.norm(q - settled, axis=1) / d
     # the top layer: the particles that started in it
     top = model.particle_q.numpy()[:, 2] > (args.layers - 1) * d
     stats = solver.fluid_diagnostics(states[0])
     return {
-        "particles": int(model.particle_count),
-        "n": args.n,
-        "layers": args.layers,
-        "substeps": args.substeps,
-        **solver_record(solver),
-        "settle_s": args.settle,
+        "settle_s": settle_s,
         "measure_s": args.measure,
-        "start_offset_spacings": args.offset,
         "rms_speed_m_s": float(np.mean(rms)),
         "rms_whole_m_s": float(whole),
         "rms_long_waves_m_s": float(long_waves),
@@ -169,8 +163,51 @@ def run(args, device) -> dict:
         "mean_abs_density_error": stats["mean_abs_density_error"],
         "max_compression": stats["max_compression"],
         **interior_density(q, d, solver.fluid_smoothing_length),
-        "wall_s": wall,
     }
+
+
+def run(args, device) -> dict:
+    """The column measured over each window of ``args.measure`` seconds from the times in ``args.settle``, in one run.
+
+    The first window's readings are the record's own fields; with more than one window they are all under
+    ``windows``. Measuring reads the state and leaves it as it is, so a window reads as a run measured from its
+    settling time alone would.
+    """
+    d = SPACING
+    model = build(args.n, args.layers, device, args.offset)
+    solver, frame = contact_frames(model, args, d, device)
+    start = time.perf_counter()
+    windows, frames_done = [], 0
+    for settle_s in args.settle:
+        windows.append(measure_window(model, solver, frame, args, d, settle_s, frames_done))
+        frames_done = round(settle_s * 60.0) + round(args.measure * 60.0)
+    record = {
+        "particles": int(model.particle_count),
+        "n": args.n,
+        "layers": args.layers,
+        "substeps": args.substeps,
+        **solver_record(solver),
+        "start_offset_spacings": args.offset,
+        **windows[0],
+        "wall_s": time.perf_counter() - start,
+    }
+    if len(windows) > 1:
+        record["windows"] = windows
+    return record
+
+
+def settling_times(measure: float):
+    """An argparse type check of ``--settle``'s list: times from 0 whose windows of ``measure`` seconds do not overlap."""
+
+    def check(times: list[float]) -> list[float]:
+        if any(t < 0.0 for t in times) or any(b < a + measure for a, b in zip(times, times[1:], strict=False)):
+            raise argparse.ArgumentTypeError(
+                f"--settle {' '.join(f'{t:g}' for t in times)}: expected times >= 0 in increasing order, each at "
+                f"least --measure ({measure:g} s) after the one before"
+            )
+        return times
+
+    return check
 
 
 def _ratio(x) -> str:
@@ -181,7 +218,13 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--n", type=int, default=12, help="particles along each side of the column")
     parser.add_argument("--layers", type=int, default=24)
-    parser.add_argument("--settle", type=float, default=2.0, help="[s]")
+    parser.add_argument(
+        "--settle",
+        type=float,
+        nargs="+",
+        default=[2.0],
+        help="when each measurement starts [s]; several: one run measured over each window in turn",
+    )
     parser.add_argument("--measure", type=float, default=3.0, help="[s]")
     parser.add_argument(
         "--offset",
@@ -192,23 +235,29 @@ def main(argv=None):
     )
     add_solver_arguments(parser)
     args = parser.parse_args(argv)
+    try:
+        args.settle = settling_times(args.measure)(args.settle)
+    except argparse.ArgumentTypeError as e:
+        parser.error(str(e))
     wp.config.quiet = True
     device = wp.get_device(args.device)
     with wp.ScopedDevice(device):
         r = run(args, device)
     print(
-        f"{'device':<24}{'particles':>10}{'sub x it':>9}{'rms m/s':>9}{'max m/s':>9}{'mean d':>8}{'max d':>7}"
-        f"{'top':>6}{'surf':>6}{'mean|e|':>9}{'max c':>7}{'inner n':>9}{'poly6':>8}{'whole':>8}{'long':>8}{'fine':>8}"
+        f"{'device':<24}{'particles':>10}{'sub x it':>9}{'from s':>7}{'rms m/s':>9}{'max m/s':>9}{'mean d':>8}"
+        f"{'max d':>7}{'top':>6}{'surf':>6}{'mean|e|':>9}{'max c':>7}{'inner n':>9}{'poly6':>8}{'whole':>8}{'long':>8}"
+        f"{'fine':>8}"
     )
     name = device.name if device.is_cuda else "cpu"
-    print(
-        f"{name:<24}{r['particles']:>10}{r['substeps']:>5} x {r['iterations']:<1}{r['rms_speed_m_s']:>9.4f}"
-        f"{r['max_speed_m_s']:>9.3f}{r['mean_displacement_spacings']:>8.3f}{r['max_displacement_spacings']:>7.2f}"
-        f"{r['top_layer_span_spacings']:>6.2f}{r['surface_span_spacings']:>6.2f}"
-        f"{100 * r['mean_abs_density_error']:>8.2f}%{100 * r['max_compression']:>6.2f}%"
-        f"{_ratio(r['interior_number_density']):>9}{_ratio(r['interior_poly6_density']):>8}"
-        f"{r['rms_whole_m_s']:>8.4f}{r['rms_long_waves_m_s']:>8.4f}{r['rms_particle_scale_m_s']:>8.4f}"
-    )
+    for w in r.get("windows", [r]):
+        print(
+            f"{name:<24}{r['particles']:>10}{r['substeps']:>5} x {r['iterations']:<1}{w['settle_s']:>7g}"
+            f"{w['rms_speed_m_s']:>9.4f}{w['max_speed_m_s']:>9.3f}{w['mean_displacement_spacings']:>8.3f}"
+            f"{w['max_displacement_spacings']:>7.2f}{w['top_layer_span_spacings']:>6.2f}{w['surface_span_spacings']:>6.2f}"
+            f"{100 * w['mean_abs_density_error']:>8.2f}%{100 * w['max_compression']:>6.2f}%"
+            f"{_ratio(w['interior_number_density']):>9}{_ratio(w['interior_poly6_density']):>8}"
+            f"{w['rms_whole_m_s']:>8.4f}{w['rms_long_waves_m_s']:>8.4f}{w['rms_particle_scale_m_s']:>8.4f}"
+        )
     return write_record("rest_column", device, r, args.json)
 
 

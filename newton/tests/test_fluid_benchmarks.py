@@ -213,6 +213,33 @@ def test_rest_column_offset_moves_the_start(test, device):
         test.assertIn("--offset", case_parser("rest_column").format_help())
 
 
+def test_rest_column_windows_read_as_separate_runs(test, device):
+    # rest_column --settle S1 S2: one run measured over each window; measuring leaves the state as it is, so the
+    # second window reads bitwise what a run measured from S2 alone reads (CPU)
+    with rest_column_module(test) as rest_column:
+        small = ["--n", "3", "--layers", "4", "--measure", "0.05", "--device", "cpu"]
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+            both = rest_column.main([*small, "--settle", "0.05", "0.1"])
+            alone = rest_column.main([*small, "--settle", "0.1"])
+        test.assertEqual([w["settle_s"] for w in both["windows"]], [0.05, 0.1])
+        test.assertEqual(both["rms_speed_m_s"], both["windows"][0]["rms_speed_m_s"])
+        test.assertNotIn("windows", alone)
+        for key in (
+            "rms_speed_m_s",
+            "max_speed_m_s",
+            "max_displacement_spacings",
+            "energy_end_J_kg",
+            "max_compression",
+        ):
+            test.assertEqual(both["windows"][1][key], alone[key], key)
+        test.assertNotEqual(both["windows"][0]["energy_end_J_kg"], alone["energy_end_J_kg"])
+        # windows that overlap are refused, naming the flag
+        err = io.StringIO()
+        with contextlib.redirect_stderr(err), test.assertRaises(SystemExit):
+            rest_column.main([*small, "--settle", "0.1", "0.12"])
+        test.assertIn("--settle 0.1 0.12", err.getvalue())
+
+
 class TestFluidBenchmarks(unittest.TestCase):
     pass
 
