@@ -196,20 +196,6 @@ def run(args, device) -> dict:
     return record
 
 
-def settling_times(measure: float):
-    """An argparse type check of ``--settle``'s list: times from 0 whose windows of ``measure`` seconds do not overlap."""
-
-    def check(times: list[float]) -> list[float]:
-        if any(t < 0.0 for t in times) or any(b < a + measure for a, b in zip(times, times[1:], strict=False)):
-            raise argparse.ArgumentTypeError(
-                f"--settle {' '.join(f'{t:g}' for t in times)}: expected times >= 0 in increasing order, each at "
-                f"least --measure ({measure:g} s) after the one before"
-            )
-        return times
-
-    return check
-
-
 def _ratio(x) -> str:
     return "-" if x is None else f"{x:.4f}"
 
@@ -235,10 +221,12 @@ def main(argv=None):
     )
     add_solver_arguments(parser)
     args = parser.parse_args(argv)
-    try:
-        args.settle = settling_times(args.measure)(args.settle)
-    except argparse.ArgumentTypeError as e:
-        parser.error(str(e))
+    times = args.settle
+    if any(t < 0.0 for t in times) or any(b < a + args.measure for a, b in zip(times, times[1:], strict=False)):
+        parser.error(
+            f"--settle {' '.join(f'{t:g}' for t in times)}: expected times >= 0 in increasing order, each at least "
+            f"--measure ({args.measure:g} s) after the one before"
+        )
     wp.config.quiet = True
     device = wp.get_device(args.device)
     with wp.ScopedDevice(device):
