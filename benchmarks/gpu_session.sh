@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/archive/performance_notebook.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|coarse-damping|damping-interval|damping-interval-box|damping-interval-wave|damping-interval-pool|pool-settle|pool-pump|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|exact-i2|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|coarse-damping|damping-interval|damping-interval-box|damping-interval-wave|damping-interval-pool|pool-settle|pool-pump|pool-one-kernel|box-one-kernel|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|exact-i2|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
 # tests and usd need usd-core (pxr) beside newton and warp; the rest runs without it
 set -u
 out=${1:?output folder}; shift
@@ -393,6 +393,13 @@ for what in "$@"; do
         python3 -m benchmarks dam_break $v --particles 1000000 --warmup-frames 20 --frames 10 --trials 2 \
           --json "$out/dam_break_1m_poly6${tag}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
       done ;;
+    pool-one-kernel)
+      # the 100k pool and the 24 x 24 x 40 fluid with one kernel for the density and its gradient, measured late as
+      # pool-settle measures the defaults: the pump gone, what rests (docs/validation.rst, "The deep pool's pump")
+      python3 -m benchmarks rest_column --device cuda:0 --n 50 --layers 40 --density-kernel one_kernel --settle 2 7 17 27 \
+        --json "$out/rest_column_50x50x40_one_kernel_settle_windows_${gpu}.json" 2>&1 | grep -A5 '^device'
+      python3 -m benchmarks rest_column --device cuda:0 --n 24 --layers 40 --density-kernel one_kernel --settle 7 17 \
+        --json "$out/rest_column_24x24x40_one_kernel_settle_7_17_${gpu}.json" 2>&1 | grep -A3 '^device' ;;
     box-runs)
       # the floating box of test_floating_box_comes_to_rest repeated at two non-affine dampings (its outcome on a GPU
       # changes from run to run; docs/validation.rst "Floating box"), and the 100k pool and dam break at each
@@ -406,6 +413,13 @@ for what in "$@"; do
           --json "$out/rest_column_50x50x40_damping_${v}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
         python3 -m benchmarks dam_break --nonaffine-damping $v --trials 3 \
           --json "$out/dam_break_100k_damping_${v}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+      done ;;
+    box-one-kernel)
+      # the floating box's twelve starts 1 um apart with one kernel for the density and its gradient, and at the
+      # default kernel, in one session (docs/validation.rst, "Floating box")
+      for k in one_kernel poly6; do
+        python3 docs/validation/floating_box/repeat_runs.py --device cuda:0 --runs 12 --offset 1e-6 --density-kernel $k \
+          --json "$out/floating_box_offsets_${k}_${gpu}.json" 2>&1 | grep '^damping'
       done ;;
     ncu)
       ncu --kernel-name regex:'build_fluid|compute_fluid_density|apply_fluid_density|apply_fluid_visc' \
