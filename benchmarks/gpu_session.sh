@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/archive/performance_notebook.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|coarse-damping|damping-interval|damping-interval-box|damping-interval-wave|damping-interval-pool|pool-settle|pool-pump|pool-one-kernel|box-one-kernel|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|exact-i2|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|coarse-damping|damping-interval|damping-interval-box|damping-interval-wave|damping-interval-pool|pool-settle|pool-pump|pool-one-kernel|box-one-kernel|compression-damping|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|exact-i2|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
 # tests and usd need usd-core (pxr) beside newton and warp; the rest runs without it
 set -u
 out=${1:?output folder}; shift
@@ -421,6 +421,21 @@ for what in "$@"; do
         python3 docs/validation/floating_box/repeat_runs.py --device cuda:0 --runs 12 --offset 1e-6 --density-kernel $k \
           --json "$out/floating_box_offsets_${k}_${gpu}.json" 2>&1 | grep '^damping'
       done ;;
+    compression-damping)
+      # fluid_compression_damping (docs/formulation.rst, "Compression damping"): its cost on the 100k dam break with
+      # each kernel, alternated; the one kernel's 100k pool and floating box with it at 0.4
+      for v in one_kernel one_kernel_0.4 poly6 poly6_0.4 one_kernel_2; do
+        k=${v%_*}; [ $v = poly6 ] && k=poly6; [ $v = one_kernel ] && k=one_kernel
+        flags="--density-kernel $k"; [ ${v##*_} = 0.4 ] && flags="$flags --compression-damping 0.4"
+        python3 -m benchmarks dam_break $flags --trials 2 --json "$out/dam_break_100k_compression_damping_${v}_${gpu}.json" \
+          2>&1 | grep -A1 '^device' | tail -1
+      done
+      python3 -m benchmarks rest_column --device cuda:0 --n 50 --layers 40 --density-kernel one_kernel \
+        --compression-damping 0.4 --settle 2 7 --json "$out/rest_column_50x50x40_one_kernel_compression_damping_0.4_${gpu}.json" \
+        2>&1 | grep -A3 '^device'
+      python3 docs/validation/floating_box/repeat_runs.py --device cuda:0 --runs 12 --offset 1e-6 --density-kernel one_kernel \
+        --compression-damping 0.4 --json "$out/floating_box_offsets_one_kernel_compression_damping_0.4_${gpu}.json" 2>&1 \
+        | grep '^damping' ;;
     ncu)
       ncu --kernel-name regex:'build_fluid|compute_fluid_density|apply_fluid_density|apply_fluid_visc' \
         --launch-skip 40 --launch-count 4 --section SpeedOfLight --section Occupancy --section LaunchStats \

@@ -105,6 +105,8 @@ BAD_ARGUMENTS = [
     ("fluid_warm_start", -0.1),
     ("fluid_warm_start", 0.6),
     ("fluid_warm_start", 1.0),
+    ("fluid_compression_damping", -0.1),
+    ("fluid_compression_damping", 0.5),
 ]
 
 

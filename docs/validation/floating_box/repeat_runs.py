@@ -41,6 +41,9 @@ def main():
     )
     parser.add_argument("--density-kernel", default=None, help="fluid_density_kernel (default: the solver's)")
     parser.add_argument("--coarse-correction", type=float, default=None, help="fluid_coarse_correction (default: off)")
+    parser.add_argument(
+        "--compression-damping", type=float, default=None, help="fluid_compression_damping (default: off)"
+    )
     parser.add_argument("--json", default=None)
     args = parser.parse_args()
     wp.config.quiet = True
@@ -51,6 +54,7 @@ def main():
         "smoothing_ratio": args.smoothing_ratio,
         "density_kernel": args.density_kernel,
         "coarse_correction": args.coarse_correction,
+        "compression_damping": args.compression_damping,
         "runs": {},
     }
     extra = {} if args.smoothing_ratio is None else {"fluid_smoothing_length": args.smoothing_ratio * BOX_SPACING}
@@ -58,6 +62,8 @@ def main():
         extra["fluid_density_kernel"] = args.density_kernel
     if args.coarse_correction is not None:
         extra["fluid_coarse_correction"] = args.coarse_correction
+    if args.compression_damping is not None:
+        extra["fluid_compression_damping"] = args.compression_damping
     for damping in args.damping:
         rows = []
         for k in track(range(args.runs), f"damping {damping}", unit="run"):

@@ -356,6 +356,9 @@ _FLUID_DOC = """
                 sums ``(1 - r/h)^2.5``, normalised so the rest lattice reads ``m / d^3``, and moves along its own
                 gradient: still water churns less, and with ``fluid_coarse_correction`` it rests. Defaults to
                 ``"poly6"``.
+            fluid_compression_damping: Share of the compression a substep's motion adds that its density passes
+                also remove [dimensionless], in [0, 0.4], set at construction; 0 is off. Damps a deep column's ring
+                as strongly as the passes act on it; a load at rest is held as before. Defaults to 0.
 """
 
 

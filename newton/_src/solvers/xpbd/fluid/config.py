@@ -52,6 +52,12 @@ DEFAULT_COARSE_CELL = 3.0
 MAX_WARM_START = 0.5
 
 
+# largest fluid_compression_damping: a substep's passes move a mode's error to p C* - (1 - p) g (C* - C0), which is
+# stable for p > (2 g - 1) / (3 + 2 g); an even pass count reaches p = 0, so g must stay below a half
+# (docs/formulation.rst, "Compression damping"; the stable step narrows for odd counts, calibration.stable_pass_bound)
+MAX_COMPRESSION_DAMPING = 0.4
+
+
 # largest fluid_density_ramp: a ramp over 1 % compression would hold every loaded particle 0.5 % more compressed
 MAX_DENSITY_RAMP = 0.01
 
@@ -122,6 +128,7 @@ class FluidConfig:
     fluid_coarse_correction: float = 0.0
     fluid_coarse_cell: float = DEFAULT_COARSE_CELL
     fluid_density_kernel: str = "poly6"
+    fluid_compression_damping: float = 0.0
 
     #: parameters that may change after construction (they live on the device)
     MUTABLE = (
@@ -157,6 +164,9 @@ class FluidConfig:
         self.max_diffuse_particles = count_in_range("max_diffuse_particles", self.max_diffuse_particles, 2**31 - 1)
         self.fluid_coarse_correction = real_in_range("fluid_coarse_correction", self.fluid_coarse_correction, 0.0, 1.0)
         self.fluid_coarse_cell = real_in_range("fluid_coarse_cell", self.fluid_coarse_cell, 1.0, 16.0)
+        self.fluid_compression_damping = real_in_range(
+            "fluid_compression_damping", self.fluid_compression_damping, 0.0, MAX_COMPRESSION_DAMPING
+        )
         if not isinstance(self.fluid_density_kernel, str) or self.fluid_density_kernel not in DENSITY_KERNELS:
             raise ValueError(
                 f"fluid_density_kernel={self.fluid_density_kernel!r} is invalid: expected one of "

@@ -13,6 +13,13 @@ The density is the poly6 sum and the correction moves along the spiky kernel's g
 Müller's; or, with ``fluid_density_kernel="one_kernel"``, both come from the one kernel ``(1 - r/h)^2.5``:
 the correction is then the gradient of the constraint it corrects (docs/formulation.rst, "The density
 kernel").
+
+With ``fluid_compression_damping`` g > 0 the substep's first pass also reads how much the substep's motion
+compresses each particle, ``dC_i = grad C_i . (x* - x0)`` summed over the pairs (``x*`` the predicted, ``x0``
+the substep's start positions), and every pass of the substep drives ``C_i + g dC_i`` to zero instead of
+``C_i``: the passes remove compressing motion as well as compression, in the modes they act on, so a long
+wave's ring (which the passes hold as a soft spring) is damped in proportion (docs/formulation.rst,
+"Compression damping").
 """
 
 import dataclasses
@@ -31,6 +38,7 @@ from .sph import (
     pair_direction,
     pair_share,
     poly6,
+    poly6_slope,
     spiky_slope,
 )
 from .walls import fluid_wall_share
@@ -77,8 +85,38 @@ def density_constraint_lambda(rho: float, grad_i: wp.vec3, grad_sq: float, p: Fl
     return -c / (grad_sq + wp.dot(grad_i, grad_i) + p.epsilon)
 
 
+@wp.func
+def damped_constraint_lambda(rho: float, grad_i: wp.vec3, grad_sq: float, rate: float, p: FluidParams):
+    """Jacobi multiplier of the active constraint driven to ``-rate`` (``g dC_i``) instead of zero.
+
+    A particle below rest density stays free (the constraint is unilateral); one compressed is pushed at
+    most to rest, never pulled (``C + rate`` is taken at least 0).
+    """
+    if rho * p.inv_rest_density <= 1.0:
+        return 0.0
+    lam = density_constraint_lambda(rho, grad_i, grad_sq, p)
+    denominator = grad_sq + wp.dot(grad_i, grad_i) + p.epsilon
+    return wp.min(lam - rate / denominator, 0.0)
+
+
 # the density sum's terms: grad C_i w.r.t. x_j (0-2), m W_ij (3), |grad C_i w.r.t. x_j|^2 (4)
 vec5 = wp.types.vector(length=5, dtype=float)
+
+
+@wp.struct
+class RateSlot:
+    """What a neighbour's compression-rate term needs of slot ``i``."""
+
+    x: wp.vec3  # position [m]
+    moved: wp.vec3  # its move in the substep so far, x* - x0 [m]
+    x_start: wp.array[wp.vec3]  # every particle's position at the substep's start
+
+
+# kinds of density pass under fluid_compression_damping: the substep's first (reads the motion's compression),
+# a later one of the substep (drives to what the first read), or one outside a step (no damping)
+RATE_NONE = wp.constant(0)
+RATE_READ = wp.constant(1)
+RATE_KEPT = wp.constant(2)
 
 
 @wp.struct
@@ -247,17 +285,19 @@ def named_variant(fn, suffix: str):
 
 
 @functools.cache
-def density_passes(kernel: str) -> DensityPasses:
+def density_passes(kernel: str, damped: bool = False) -> DensityPasses:
     """The density passes with ``kernel``'s density and gradient (``"poly6"`` or ``"one_kernel"``) compiled in.
 
     ``"poly6"``: the poly6 sum moved along the spiky gradient (Macklin & Müller 2013); ``"one_kernel"``:
     ``c (1 - r/h)^2.5`` and its own gradient. The choice is made when the code is generated
     (``wp.static``), not per pair: a branch on it in the pair terms cost the 1M dam break 3.6 % of its frame
     with poly6 (one H200, ``bash benchmarks/gpu_session.sh OUT density-kernel``), and the kernels of a
-    choice a scene does not make are not compiled. The ``"poly6"`` kernels keep their names.
+    choice a scene does not make are not compiled. The ``"poly6"`` kernels keep their names. ``damped``
+    compiles the compression damping's rate into the density pass (``fluid_compression_damping`` > 0);
+    without it the pass reads nothing more than before.
     """
     one = kernel == "one_kernel"
-    suffix = "_one_kernel" if one else ""
+    suffix = ("_one_kernel" if one else "") + ("_damped" if damped else "")
 
     def pair_weight(r2: float, d: float, p: FluidParams):
         if wp.static(one):
@@ -299,6 +339,30 @@ def density_passes(kernel: str) -> DensityPasses:
 
     density_term = wp.func(named_variant(density_term, suffix))
     density_sum = neighbor_sum(density_term, pairwise=True)
+
+    def density_slope(dist: float, d: float, p: FluidParams):
+        """``dW/d|r|`` of the density's own kernel (poly6's is not the spiky slope the correction moves along)."""
+        if wp.static(one):
+            return one_kernel_slope(d / p.h, p)
+        return poly6_slope(dist, p)
+
+    density_slope = wp.func(named_variant(density_slope, suffix))
+
+    def rate_term(slots: FluidSlots, j: int, me: RateSlot, p: FluidParams):
+        """Neighbour ``j``'s share of ``dC_i = sum_j m / rho0 W'(|r|) n . (moved_i - moved_j)``."""
+        xj4 = slots.xm[j]
+        xj = wp.vec3(xj4[0], xj4[1], xj4[2])
+        r = me.x - xj
+        r2 = wp.dot(r, r)
+        if r2 >= p.h2 or r2 == 0.0:
+            return float(0.0)
+        dist = wp.sqrt(r2)
+        moved_j = xj - me.x_start[slots.particle[j]]
+        slope = wp.static(density_slope)(dist, p.h - dist, p)
+        return slope * p.reference_mass * p.inv_rest_density * wp.dot(r / dist, me.moved - moved_j)
+
+    rate_term = wp.func(named_variant(rate_term, suffix))
+    rate_sum = neighbor_sum(rate_term)
 
     def correction_term(
         xi4: wp.vec4,
@@ -361,12 +425,15 @@ def density_passes(kernel: str) -> DensityPasses:
         wall_table_grad: wp.array[float],
         track_compression: int,
         track_peaks: int,
+        rate_pass: int,
+        x_start: wp.array[wp.vec3],
         # outputs
         density: wp.array[float],
         lambda_rho: wp.array[wp.vec2],
         wall_grad: wp.array[wp.vec3],
         compression_bins: wp.array[float],
         peaks: wp.array[float],
+        rate: wp.array[float],
     ):
         """Density and the Jacobi multiplier of the unilateral constraint C = max(rho/rho0 - 1, 0).
 
@@ -376,7 +443,9 @@ def density_passes(kernel: str) -> DensityPasses:
         counts the particles in ``[B, 2B)`` (``B = COMPRESSION_BINS``, spreading the atomics). With
         ``track_peaks`` (a substep's last pass), counts the particles compressed by more than
         ``PEAK_COMPRESSION`` into ``peaks[0, B)`` and keeps their largest compression in ``peaks[B, 2B)``,
-        until :meth:`~.solver_fluid.FluidSolver.diagnostics` reads and clears them.
+        until :meth:`~.solver_fluid.FluidSolver.diagnostics` reads and clears them. Compiled ``damped``,
+        ``rate_pass`` ``RATE_READ`` sums ``g dC_i`` from the moves since ``x_start`` into ``rate``, and it
+        and ``RATE_KEPT`` drive the constraint to ``-rate`` (``RATE_NONE``: to 0).
         """
         i = wp.tid()
         pi = slots.particle[i]
@@ -402,7 +471,23 @@ def density_passes(kernel: str) -> DensityPasses:
         wall_grad[i] = wall_g
         density[i] = rho
         # the multiplier and the relative density, which the correction reads for each neighbour
-        lambda_rho[i] = wp.vec2(density_constraint_lambda(rho, grad_i, grad_sq, p), rho * p.inv_rest_density)
+        lam = float(0.0)
+        if wp.static(damped):
+            g = float(0.0)
+            if rate_pass == RATE_READ:
+                me_rate = RateSlot()
+                me_rate.x = xi
+                me_rate.moved = xi - x_start[pi]
+                me_rate.x_start = x_start
+                moved_in = wp.static(rate_sum)(slots, i, me_rate, p, float(0.0)) + wp.dot(wall_g, me_rate.moved)
+                g = p.compression_damping * moved_in
+                rate[i] = g
+            elif rate_pass == RATE_KEPT:
+                g = rate[i]
+            lam = damped_constraint_lambda(rho, grad_i, grad_sq, g, p)
+        else:
+            lam = density_constraint_lambda(rho, grad_i, grad_sq, p)
+        lambda_rho[i] = wp.vec2(lam, rho * p.inv_rest_density)
         if track_compression != 0:
             b = i % COMPRESSION_BINS
             wp.atomic_add(compression_bins, b, wp.max(rho * p.inv_rest_density - 1.0, 0.0))

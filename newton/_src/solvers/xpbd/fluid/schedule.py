@@ -11,7 +11,7 @@ decision is one block that sums the compression bins of the pass it follows
 
 import warp as wp
 
-from .density_constraint import COMPRESSION_BINS, COMPRESSION_SUMS
+from .density_constraint import COMPRESSION_BINS, COMPRESSION_SUMS, RATE_KEPT, RATE_READ
 from .sph import FluidParams, SlotContent
 
 # approximate division and square root in CUDA code (no effect on the CPU; see :mod:`.sph`)
@@ -188,7 +188,12 @@ class FixedPasses:
         """The density pass and correction of one XPBD iteration (see :meth:`~.solver_fluid.FluidSolver.solve_density`)."""
         f = self.fluid
         if not f.evaluated_ahead:
-            f.evaluate_constraint(active, track_compression=self.tolerance, last=f.iteration == iterations)
+            f.evaluate_constraint(
+                active,
+                track_compression=self.tolerance,
+                last=f.iteration == iterations,
+                rate_pass=RATE_READ if first else RATE_KEPT,
+            )
         f.evaluated_ahead = False
         self.decide(first, active)
         # (a pass that may be skipped writes no applied positions)
@@ -204,7 +209,7 @@ class FixedPasses:
                 # the next iteration's density pass needs only these positions: it runs beside
                 # upstream's application of the deltas and its next contacts
                 with f.beside():
-                    f.evaluate_constraint(active, last=f.iteration + 1 == iterations)
+                    f.evaluate_constraint(active, last=f.iteration + 1 == iterations, rate_pass=RATE_KEPT)
                 f.evaluated_ahead = True
 
 
@@ -271,7 +276,12 @@ class SubPasses:
         f = self.fluid
         more = f.config.fluid_max_iterations - 1
         self._last_iteration = f.iteration == iterations
-        f.evaluate_constraint(f.always_active, track_compression=True, last=self._last_iteration)
+        f.evaluate_constraint(
+            f.always_active,
+            track_compression=True,
+            last=self._last_iteration,
+            rate_pass=RATE_READ if first else RATE_KEPT,
+        )
         launch_decide_after_first_pass(f, self.loop_active, self.loop_count, more, stop_uncompressed=True)
         f.correct(particle_deltas, f.always_active, advance=True)
         f.swap_slot_buffers()
@@ -298,7 +308,7 @@ class SubPasses:
     def _pass(self, particle_deltas: wp.array) -> None:
         f = self.fluid
         # (the density pass measures the walls where the last pass left the particles)
-        f.evaluate_constraint(self.loop_active, track_compression=True, last=self._last_iteration)
+        f.evaluate_constraint(self.loop_active, track_compression=True, last=self._last_iteration, rate_pass=RATE_KEPT)
         wp.launch_tiled(
             decide_fluid_subiteration,
             dim=1,

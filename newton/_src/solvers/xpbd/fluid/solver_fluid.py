@@ -49,6 +49,7 @@ from .density_constraint import (
     APPLY_ADVANCE,
     APPLY_AS_XPBD,
     COMPRESSION_SUMS,
+    RATE_NONE,
     ParticleApply,
     density_passes,
     gather_fluid_positions,
@@ -123,7 +124,7 @@ class FluidSolver:
         self.mean_mass = float(masses.mean())
         kernel = config.fluid_density_kernel
         #: the density constraint's passes compiled for the kernel
-        self.passes = density_passes(kernel)
+        self.passes = density_passes(kernel, damped=config.fluid_compression_damping > 0.0)
         self.rest_lattice_neighbors = len(rest_lattice(d, h)) - 1
         #: rest density of a regular lattice at the rest distance under the density kernel's sum [kg/m^3]
         self.lattice_density = lattice_density(d, h, self.mean_mass, kernel)
@@ -138,7 +139,7 @@ class FluidSolver:
         else:
             fewest, most = iterations, iterations
         #: the relaxation in use while ``fluid_relaxation`` is None (see :func:`stable_relaxation`)
-        self.default_relaxation = stable_relaxation(d, h, fewest, most, kernel)
+        self.default_relaxation = stable_relaxation(d, h, fewest, most, kernel, config.fluid_compression_damping)
 
         if config.fluid_max_neighbors > 0:
             capacity, capped = config.fluid_max_neighbors, True
@@ -194,6 +195,10 @@ class FluidSolver:
             # (gathered by the sort) and the substep's running sum per slot
             warm = self.warm_start_mode
             self.particle_lambda = wp.zeros(model.particle_count if warm else 0, dtype=float)
+            #: g dC of each slot, read by the substep's first density pass (fluid_compression_damping)
+            self.compression_rate = wp.zeros(n if config.fluid_compression_damping > 0.0 else 0, dtype=float)
+            #: the positions the current substep started from (its first density pass reads the moves since)
+            self.substep_start = wp.zeros(0, dtype=wp.vec3)
             self.warm_lambda = wp.zeros(n if warm else 0, dtype=float)
             self.lambda_sum = wp.zeros(n if warm else 0, dtype=float)
             if warm:
@@ -341,6 +346,7 @@ class FluidSolver:
         p.vorticity = c.fluid_vorticity
         p.density_tolerance = c.fluid_density_tolerance
         p.warm_start = c.fluid_warm_start
+        p.compression_damping = c.fluid_compression_damping
         p.wall_scale = self.lattice_density / self.rest_density
         p.wall_table_step = h / (WALL_TABLE_SIZE - 1)
         self.params.assign(wp.array([p], dtype=FluidParams, device="cpu"))
@@ -396,6 +402,8 @@ class FluidSolver:
         """
         self._join()
         m, contacts = self.model, self.contacts
+        if particle_q_start is not None:
+            self.substep_start = particle_q_start
         walls = None
         if particle_q_start is not None and self._has_walls and contacts is not None:
             walls = FluidWallContacts()
@@ -538,11 +546,15 @@ class FluidSolver:
             device=self.device,
         )
 
-    def evaluate_constraint(self, active: wp.array, track_compression: bool = False, last: bool = False) -> None:
+    def evaluate_constraint(
+        self, active: wp.array, track_compression: bool = False, last: bool = False, rate_pass: int = RATE_NONE
+    ) -> None:
         """Density and multipliers at the positions gathered in ``slots.xm`` (while ``active[0]`` is set).
 
         ``last``: a pass of the substep's last XPBD iteration, whose compression peaks are kept for the
-        next report.
+        next report. ``rate_pass`` (with ``fluid_compression_damping``): ``RATE_READ`` for the substep's
+        first pass, which reads how much the substep's motion compresses each particle, ``RATE_KEPT`` for its
+        later passes, ``RATE_NONE`` outside a step's passes.
         """
         wp.launch(
             self.passes.compute_lambda,
@@ -555,8 +567,17 @@ class FluidSolver:
                 self.wall_table_grad,
                 int(track_compression),
                 int(last),
+                rate_pass if self.compression_rate.shape[0] else RATE_NONE,
+                self.substep_start,
             ],
-            outputs=[self.density, self.lambda_rho, self.wall_grad, self.compression_bins, self.reports.peaks],
+            outputs=[
+                self.density,
+                self.lambda_rho,
+                self.wall_grad,
+                self.compression_bins,
+                self.reports.peaks,
+                self.compression_rate,
+            ],
             device=self.device,
         )
 

@@ -75,6 +75,7 @@ class FluidParams:
     vorticity: float  # confinement strength [m/s]
     density_tolerance: float  # mean compression at which density sub-iterations stop
     warm_start: float  # share of a substep's summed multipliers that the next substep starts from (0: off)
+    compression_damping: float  # share of the compression a substep's motion adds that its passes also remove
     wall_scale: float  # lattice density / rest density: converts the wall tables to constraint units
     wall_table_step: float  # wall distance between table samples [m]
 
@@ -124,6 +125,13 @@ def one_kernel(q: float, p: FluidParams):
 def one_kernel_slope(q: float, p: FluidParams):
     """``dW/d|r|`` of the one kernel at ``q = 1 - |r|/h`` in [0, 1]: ``-2.5 c / h q^1.5`` [1/m^4]."""
     return -p.one_kernel_slope * q * wp.sqrt(q)
+
+
+@wp.func
+def poly6_slope(dist: float, p: FluidParams):
+    """``dW/d|r|`` of the poly6 kernel at ``|r| = dist`` < h: ``-6 c |r| (h^2 - |r|^2)^2`` [1/m^4]."""
+    d = p.h2 - dist * dist
+    return -6.0 * p.poly6 * dist * d * d
 
 
 @wp.func

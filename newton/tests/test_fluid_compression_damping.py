@@ -1,0 +1,87 @@
+# SPDX-FileCopyrightText: Copyright (c) 2026 The newton-fluid Developers
+# SPDX-License-Identifier: Apache-2.0
+
+"""The compression damping (``fluid_compression_damping``): its stable step, its cost when off, a deep column's ring (CPU and CUDA)."""
+
+import math
+import unittest
+
+import numpy as np
+from newton.tests.unittest_utils import add_function_test, get_test_devices
+
+from newton._src.solvers.xpbd.fluid.calibration import stable_pass_bound
+from newton.tests.test_fluid_coarse_correction import column
+
+
+def substep_radius(kept: float, damping: float) -> float:
+    """Spectral radius of the substep ``x' = p x* - (1 - p) g (x* - x)``, ``x* = 2 x - x_prev``, of a mode kept ``p``."""
+    a = kept - (1.0 - kept) * damping
+    step = np.array([[2.0 * a + (1.0 - kept) * damping, -a], [1.0, 0.0]])
+    return float(np.abs(np.linalg.eigvals(step)).max())
+
+
+def test_stable_step_with_damping(test, device):
+    # the bound on relaxation x eigenvalue is where the substep's least stable mode reaches the unit circle:
+    # below it every mode of 1 to 3 passes stays inside, just above it one leaves (for an even count the bound,
+    # 2, is where the pass itself overshoots and (1 - w mu)^k reaches 1)
+    test.assertEqual(stable_pass_bound(1, 1), 1.0 + 3.0**-1.0)
+    test.assertEqual(stable_pass_bound(2, 2, 0.4), 2.0)
+    for damping in (0.0, 0.2, 0.4):
+        for passes in (1, 2, 3):
+            bound = stable_pass_bound(passes, passes, damping)
+            steps = np.linspace(0.0, 0.999 * bound, 400)
+            inside = max(substep_radius((1.0 - s) ** passes, damping) for s in steps[1:])
+            test.assertLess(inside, 1.0 + 1.0e-9, msg=f"g {damping}, {passes} passes")
+            if passes % 2:
+                test.assertGreater(substep_radius((1.0 - 1.01 * bound) ** passes, damping), 1.0)
+    # an odd count narrows the step as the damping grows: one pass 4/3 undamped, 1.05 at 0.4
+    test.assertLess(stable_pass_bound(1, 1, 0.4), 1.06)
+    test.assertLess(stable_pass_bound(1, 3, 0.4), stable_pass_bound(1, 3))
+
+
+def test_off_compiles_nothing(test, device):
+    # nothing is paid for the damping a scene does not use: no rate buffer, the undamped passes
+    off = column(device, n=2, layers=2).solver._fluid
+    test.assertEqual(off.compression_rate.shape[0], 0)
+    test.assertFalse(off.passes.suffix.endswith("_damped"))
+    on = column(device, n=2, layers=2, fluid_compression_damping=0.4).solver._fluid
+    test.assertEqual(on.compression_rate.shape[0], on.fluid_count)
+    test.assertTrue(on.passes.suffix.endswith("_damped"))
+    test.assertEqual(on.config.fluid_compression_damping, 0.4)
+
+
+def column_ring(device, damping: float) -> tuple[float, float, bool]:
+    """The whole column's vertical speed (RMS over 2-3 s) and the largest compression of a 4 x 4 x 40 one-kernel column."""
+    sim = column(device, n=4, layers=40, fluid_density_kernel="one_kernel", fluid_compression_damping=damping)
+    sim.step(120)
+    whole = []
+    for _ in range(60):
+        sim.step()
+        whole.append(float(sim.qd()[:, 2].mean()))
+    compression = sim.solver.fluid_diagnostics(sim.state_0)["max_compression"]
+    return math.sqrt(float(np.mean(np.square(whole)))), compression, bool(np.isfinite(sim.q()).all())
+
+
+def test_damping_rings_a_deep_column_down(test, device):
+    # the one kernel's deep column rings as a whole after its start (the passes hold its weight as a soft spring,
+    # PBF's own damping of it about kappa / 2 dt a second); the damping adds g times that, the load held as before
+    # (CPU: 0.0132 m/s undamped, 0.0072 at 0.4; largest compression 1.41 and 1.43 %)
+    ring, compression, finite = column_ring(device, 0.0)
+    damped, damped_compression, damped_finite = column_ring(device, 0.4)
+    test.assertTrue(finite and damped_finite)
+    test.assertGreater(ring, 0.005)
+    test.assertLess(damped, 0.7 * ring)
+    test.assertLess(abs(damped_compression - compression), 0.05 * compression)
+
+
+class TestFluidCompressionDamping(unittest.TestCase):
+    pass
+
+
+devices = get_test_devices()
+for _name, _func in list(globals().items()):
+    if _name.startswith("test_") and callable(_func):
+        add_function_test(TestFluidCompressionDamping, _name, _func, devices=devices)
+
+if __name__ == "__main__":
+    unittest.main(verbosity=2)
