@@ -9,16 +9,22 @@ nvidia-smi --query-gpu=name,driver_version,clocks.sm,clocks.max.sm --format=csv 
 # the GPU's model in the names of the files written (h100, h200, ...; "gpu" if not recognised)
 gpu=$(nvidia-smi --query-gpu=name --format=csv,noheader | head -1 | grep -oiE '[a-z]?[0-9]{2,4}[a-z]*' | head -1 | tr 'A-Z' 'a-z')
 gpu=${gpu:-gpu}
-# an archived patch on or off ($1 on|off, $2 its path). Patches written before fluid_density_kernel apply to the tree
-# without it: docs/archive/patches/density_kernel_keyword.patch is then taken off first and put back after
-keyword=docs/archive/patches/density_kernel_keyword.patch
+# an archived patch on or off ($1 on|off, $2 its path). Patches written before a keyword of the solver apply to the
+# tree without it: the keywords' own patches (the newest first: fluid_compression_damping, fluid_density_kernel) are
+# then taken off until the patch applies, and put back after
+keywords="docs/archive/patches/compression_damping_keyword.patch docs/archive/patches/density_kernel_keyword.patch"
 archived_patch() {
   if [ "$1" = on ]; then
-    if ! git apply --check --include='newton/*' "$2" 2>/dev/null; then git apply -R "$keyword" && touch /tmp/keyword_off; fi
+    : > /tmp/keywords_off
+    for k in $keywords; do
+      git apply --check --include='newton/*' "$2" 2>/dev/null && break
+      git apply -R "$k" && echo "$k" >> /tmp/keywords_off
+    done
     git apply --include='newton/*' "$2"
   else
     git apply -R --include='newton/*' "$2"
-    if [ -e /tmp/keyword_off ]; then git apply "$keyword" && rm /tmp/keyword_off; fi
+    tac /tmp/keywords_off 2>/dev/null | while read -r k; do git apply "$k"; done
+    rm -f /tmp/keywords_off
   fi
 }
 # the 100k dam break with a change ($1, a patch) on, taken off and put back, in one session; records tagged $2
@@ -252,12 +258,14 @@ for what in "$@"; do
         flags=""
         [ $v = one_kernel ] && flags="--density-kernel one_kernel"
         [ $v = one_kernel_coarse_correction ] && flags="--density-kernel one_kernel --coarse-correction 0.5"
-        [ $v = before ] && git apply -R docs/archive/patches/density_kernel_keyword.patch
+        [ $v = before ] && git apply -R docs/archive/patches/compression_damping_keyword.patch \
+          && git apply -R docs/archive/patches/density_kernel_keyword.patch
         python3 -m benchmarks dam_break $flags --trials 3 --json "$out/dam_break_100k_kernel_${v}_${gpu}.json" 2>&1 \
           | grep -A1 '^device' | tail -1
         python3 -m benchmarks dam_break $flags --particles 1000000 --warmup-frames 20 --frames 10 --trials 3 \
           --json "$out/dam_break_1m_kernel_${v}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
-        [ $v = before ] && git apply docs/archive/patches/density_kernel_keyword.patch
+        [ $v = before ] && git apply docs/archive/patches/density_kernel_keyword.patch \
+          && git apply docs/archive/patches/compression_damping_keyword.patch
       done ;;
     coarse-cost)
       # the coarse correction's cost (docs/performance.rst): the 100k and 1M dam breaks with "one_kernel" and the
