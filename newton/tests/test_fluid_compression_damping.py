@@ -50,6 +50,14 @@ def test_off_compiles_nothing(test, device):
     test.assertEqual(on.config.fluid_compression_damping, 0.4)
 
 
+def test_refused_with_the_warm_start(test, device):
+    # the damping reads the warm start's move as motion, and the pair churns still water: the solver refuses it
+    with test.assertRaisesRegex(
+        ValueError, r"fluid_compression_damping=0.4 with fluid_warm_start=0.5 .*fluid_warm_start 0"
+    ):
+        column(device, n=2, layers=2, fluid_compression_damping=0.4, fluid_warm_start=0.5)
+
+
 def column_ring(device, damping: float) -> tuple[float, float, bool]:
     """The whole column's vertical speed (RMS over 2-3 s) and the largest compression of a 4 x 4 x 40 one-kernel column."""
     sim = column(device, n=4, layers=40, fluid_density_kernel="one_kernel", fluid_compression_damping=damping)
