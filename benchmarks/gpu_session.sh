@@ -432,10 +432,12 @@ for what in "$@"; do
     compression-damping)
       # fluid_compression_damping (docs/formulation.rst, "Compression damping"): its cost on the 100k dam break with
       # each kernel, alternated; the one kernel's 100k pool and floating box with it at 0.4
-      for v in one_kernel one_kernel_0.4 poly6 poly6_0.4 one_kernel_2; do
-        k=${v%_*}; [ $v = poly6 ] && k=poly6; [ $v = one_kernel ] && k=one_kernel
-        flags="--density-kernel $k"; [ ${v##*_} = 0.4 ] && flags="$flags --compression-damping 0.4"
-        python3 -m benchmarks dam_break $flags --trials 2 --json "$out/dam_break_100k_compression_damping_${v}_${gpu}.json" \
+      # (each run: its record's tag, the kernel, the damping if any)
+      for run in "one_kernel one_kernel" "one_kernel_0.4 one_kernel 0.4" "poly6 poly6" "poly6_0.4 poly6 0.4" \
+        "one_kernel_2 one_kernel"; do
+        set -- $run
+        flags="--density-kernel $2${3:+ --compression-damping $3}"
+        python3 -m benchmarks dam_break $flags --trials 2 --json "$out/dam_break_100k_compression_damping_${1}_${gpu}.json" \
           2>&1 | grep -A1 '^device' | tail -1
       done
       python3 -m benchmarks rest_column --device cuda:0 --n 50 --layers 40 --density-kernel one_kernel \

@@ -128,6 +128,8 @@ def stable_pass_bound(fewest: int, most: int, damping: float = 0.0) -> float:
     if odd > most:
         return 2.0
     if damping == 0.0:
+        # (the undamped bound as it was written before the damping: the general form differs in the last bit at 3
+        # passes, and the default relaxation, and so every undamped run, would not be bitwise the same)
         return 1.0 + 3.0 ** (-1.0 / odd)
     return 1.0 + ((1.0 - 2.0 * damping) / (3.0 + 2.0 * damping)) ** (1.0 / odd)
 

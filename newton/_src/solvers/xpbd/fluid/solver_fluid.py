@@ -567,7 +567,7 @@ class FluidSolver:
                 self.wall_table_grad,
                 int(track_compression),
                 int(last),
-                rate_pass if self.compression_rate.shape[0] else RATE_NONE,
+                rate_pass,
                 self.substep_start,
             ],
             outputs=[
