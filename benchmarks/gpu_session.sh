@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/archive/performance_notebook.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|coarse-damping|damping-interval|damping-interval-box|damping-interval-wave|damping-interval-pool|pool-settle|pool-pump|pool-one-kernel|box-one-kernel|compression-damping|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|exact-i2|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|coarse-damping|damping-interval|damping-interval-box|damping-interval-wave|damping-interval-pool|pool-settle|pool-pump|pool-one-kernel|box-one-kernel|compression-damping|compression-damping-cost|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|exact-i2|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
 # tests and usd need usd-core (pxr) beside newton and warp; the rest runs without it
 set -u
 out=${1:?output folder}; shift
@@ -446,6 +446,26 @@ for what in "$@"; do
       python3 docs/validation/floating_box/repeat_runs.py --device cuda:0 --runs 12 --offset 1e-6 --density-kernel one_kernel \
         --compression-damping 0.4 --json "$out/floating_box_offsets_one_kernel_compression_damping_0.4_${gpu}.json" 2>&1 \
         | grep '^damping' ;;
+    compression-damping-cost)
+      # fluid_compression_damping's cost (docs/performance.rst) on the 100k and 1M dam breaks with each kernel,
+      # alternated: off; on with its rate read in a second neighbour loop through the particle index
+      # (docs/archive/patches/compression_damping_fused_read.patch taken off); on as it is (the rate in the density's
+      # own loop, the start positions in slot order). A call brings few files back: the records go in one archive.
+      # DAMPING_COST_SIZES="100k" (or "1m") runs one size (a cold machine compiles for minutes)
+      for size in ${DAMPING_COST_SIZES:-100k 1m}; do
+        sizeflags=""
+        [ $size = 1m ] && sizeflags="--particles 1000000 --warmup-frames 20 --frames 10"
+        for run in "one_kernel one_kernel" "one_kernel_0.4_two_loops one_kernel 0.4" "one_kernel_0.4 one_kernel 0.4" \
+          "poly6 poly6" "poly6_0.4_two_loops poly6 0.4" "poly6_0.4 poly6 0.4"; do
+          set -- $run
+          case $1 in *two_loops) git apply -R docs/archive/patches/compression_damping_fused_read.patch ;; esac
+          python3 -m benchmarks dam_break --density-kernel $2 ${3:+--compression-damping $3} $sizeflags --trials 2 \
+            --json "$out/dam_break_${size}_compression_damping_${1}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+          case $1 in *two_loops) git apply docs/archive/patches/compression_damping_fused_read.patch ;; esac
+        done
+      done
+      (cd "$out" && tar czf "compression_damping_cost_${DAMPING_COST_SIZES:-all}_${gpu}.tgz" \
+        dam_break_*_compression_damping_*_${gpu}.json && rm dam_break_*_compression_damping_*_${gpu}.json) ;;
     ncu)
       ncu --kernel-name regex:'build_fluid|compute_fluid_density|apply_fluid_density|apply_fluid_visc' \
         --launch-skip 40 --launch-count 4 --section SpeedOfLight --section Occupancy --section LaunchStats \

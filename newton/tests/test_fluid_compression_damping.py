@@ -40,12 +40,14 @@ def test_stable_step_with_damping(test, device):
 
 
 def test_off_compiles_nothing(test, device):
-    # nothing is paid for the damping a scene does not use: no rate buffer, the undamped passes
+    # nothing is paid for the damping a scene does not use: no rate or start buffer, the undamped passes
     off = column(device, n=2, layers=2).solver._fluid
     test.assertEqual(off.compression_rate.shape[0], 0)
+    test.assertEqual(off.sorted_start.shape[0], 0)
     test.assertFalse(off.passes.suffix.endswith("_damped"))
     on = column(device, n=2, layers=2, fluid_compression_damping=0.4).solver._fluid
     test.assertEqual(on.compression_rate.shape[0], on.fluid_count)
+    test.assertEqual(on.sorted_start.shape[0], on.fluid_count)
     test.assertTrue(on.passes.suffix.endswith("_damped"))
     test.assertEqual(on.config.fluid_compression_damping, 0.4)
 

@@ -103,13 +103,18 @@ def damped_constraint_lambda(rho: float, grad_i: wp.vec3, grad_sq: float, rate: 
 vec5 = wp.types.vector(length=5, dtype=float)
 
 
+# the density sum's terms and the compression rate's (5), for the substep's first pass under the damping
+vec6 = wp.types.vector(length=6, dtype=float)
+
+
 @wp.struct
-class RateSlot:
-    """What a neighbour's compression-rate term needs of slot ``i``."""
+class DensityRateSlot:
+    """What a neighbour's density and compression-rate terms need of slot ``i``."""
 
     x: wp.vec3  # position [m]
+    particle: int  # particle index
     moved: wp.vec3  # its move in the substep so far, x* - x0 [m]
-    x_start: wp.array[wp.vec3]  # every particle's position at the substep's start
+    start: wp.array[wp.vec3]  # every slot's position at the substep's start, in slot order (the build gathers it)
 
 
 # kinds of density pass under fluid_compression_damping: the substep's first (reads the motion's compression),
@@ -260,6 +265,8 @@ class DensityPasses:
 
     Attributes:
         compute_lambda: The kernel of the density and the multipliers.
+        compute_lambda_reading_rate: With the compression damping, that of the substep's first density pass,
+            which also reads the motion's compression rate (else None).
         apply_correction: The kernel of the Jacobi correction.
         apply_warm_start: The kernel of the warm start's correction.
         pair_weight: ``wp.func`` ``W(r2, d, p)`` of the density sum, at ``r2 = |r|^2`` and ``d = h - |r|`` [1/m^3].
@@ -270,6 +277,7 @@ class DensityPasses:
     """
 
     compute_lambda: Any
+    compute_lambda_reading_rate: Any
     apply_correction: Any
     apply_warm_start: Any
     pair_weight: Any
@@ -319,23 +327,29 @@ def density_passes(kernel: str, damped: bool = False) -> DensityPasses:
     pair_slope = wp.func(named_variant(pair_slope, suffix))
     self_weight = wp.func(named_variant(self_weight, suffix))
 
-    def density_term(slots: FluidSlots, j: int, me: DensitySlot, p: FluidParams):
-        """Neighbour ``j``'s share of slot ``i``'s constraint: ``(grad C_i w.r.t. x_j, m W_ij, its gradient squared)``.
+    def pair_density_terms(r: wp.vec3, r2: float, particle: int, slots: FluidSlots, j: int, p: FluidParams):
+        """A pair's ``(grad C_i w.r.t. x_j, m W_ij, its gradient squared)`` at ``r = x_i - x_j`` within ``h``.
 
-        Zero beyond ``h``. ``m`` is the reference mass, not ``m_j``: the constraint is on the number density,
-        so that a particle's rest density is in proportion to its own mass and fluids of different density mix.
+        ``m`` is the reference mass, not ``m_j``: the constraint is on the number density, so that a
+        particle's rest density is in proportion to its own mass and fluids of different density mix.
         """
+        dist = wp.sqrt(r2)
+        n = pair_direction(r, dist, particle, slots.particle, j, p)
+        d = p.h - dist
+        g = n * wp.static(pair_slope)(d, p) * (p.reference_mass * p.inv_rest_density)
+        w = wp.static(pair_weight)(r2, d, p)
+        return vec5(g[0], g[1], g[2], p.reference_mass * w, wp.dot(g, g))
+
+    pair_density_terms = wp.func(named_variant(pair_density_terms, suffix))
+
+    def density_term(slots: FluidSlots, j: int, me: DensitySlot, p: FluidParams):
+        """Neighbour ``j``'s share of slot ``i``'s constraint (:func:`pair_density_terms`; zero beyond ``h``)."""
         xj4 = slots.xm[j]
         r = me.x - wp.vec3(xj4[0], xj4[1], xj4[2])
         r2 = wp.dot(r, r)
         if r2 >= p.h2:
             return vec5(0.0)
-        dist = wp.sqrt(r2)
-        n = pair_direction(r, dist, me.particle, slots.particle, j, p)
-        d = p.h - dist
-        g = n * wp.static(pair_slope)(d, p) * (p.reference_mass * p.inv_rest_density)
-        w = wp.static(pair_weight)(r2, d, p)
-        return vec5(g[0], g[1], g[2], p.reference_mass * w, wp.dot(g, g))
+        return wp.static(pair_density_terms)(r, r2, me.particle, slots, j, p)
 
     density_term = wp.func(named_variant(density_term, suffix))
     density_sum = neighbor_sum(density_term, pairwise=True)
@@ -348,21 +362,29 @@ def density_passes(kernel: str, damped: bool = False) -> DensityPasses:
 
     density_slope = wp.func(named_variant(density_slope, suffix))
 
-    def rate_term(slots: FluidSlots, j: int, me: RateSlot, p: FluidParams):
-        """Neighbour ``j``'s share of ``dC_i = sum_j m / rho0 W'(|r|) n . (moved_i - moved_j)``."""
+    def density_rate_term(slots: FluidSlots, j: int, me: DensityRateSlot, p: FluidParams):
+        """:func:`density_term` and neighbour ``j``'s share of ``dC_i = sum_j m / rho0 W'(|r|) n . (moved_i - moved_j)``.
+
+        One neighbour loop for both: the substep's first pass reads each pair once. The start positions
+        are in slot order, so a neighbour's is read beside its position.
+        """
         xj4 = slots.xm[j]
         xj = wp.vec3(xj4[0], xj4[1], xj4[2])
         r = me.x - xj
         r2 = wp.dot(r, r)
-        if r2 >= p.h2 or r2 == 0.0:
-            return float(0.0)
-        dist = wp.sqrt(r2)
-        moved_j = xj - me.x_start[slots.particle[j]]
-        slope = wp.static(density_slope)(dist, p.h - dist, p)
-        return slope * p.reference_mass * p.inv_rest_density * wp.dot(r / dist, me.moved - moved_j)
+        if r2 >= p.h2:
+            return vec6(0.0)
+        t = wp.static(pair_density_terms)(r, r2, me.particle, slots, j, p)
+        rate = float(0.0)
+        if r2 > 0.0:
+            dist = wp.sqrt(r2)
+            slope = wp.static(density_slope)(dist, p.h - dist, p)
+            moved_j = xj - me.start[j]
+            rate = slope * p.reference_mass * p.inv_rest_density * wp.dot(r / dist, me.moved - moved_j)
+        return vec6(t[0], t[1], t[2], t[3], t[4], rate)
 
-    rate_term = wp.func(named_variant(rate_term, suffix))
-    rate_sum = neighbor_sum(rate_term)
+    density_rate_term = wp.func(named_variant(density_rate_term, suffix))
+    density_rate_sum = neighbor_sum(density_rate_term, pairwise=True)
 
     def correction_term(
         xi4: wp.vec4,
@@ -417,87 +439,106 @@ def density_passes(kernel: str, damped: bool = False) -> DensityPasses:
     warm_start_term = wp.func(named_variant(warm_start_term, suffix))
     warm_start_sum = neighbor_sum(warm_start_term)
 
-    def compute_fluid_density_lambda(
-        params: wp.array[FluidParams],
-        slots: FluidSlots,
-        active: wp.array[wp.int32],
-        wall_table: wp.array[float],
-        wall_table_grad: wp.array[float],
-        track_compression: int,
-        track_peaks: int,
-        rate_pass: int,
-        x_start: wp.array[wp.vec3],
-        # outputs
-        density: wp.array[float],
-        lambda_rho: wp.array[wp.vec2],
-        wall_grad: wp.array[wp.vec3],
-        compression_bins: wp.array[float],
-        peaks: wp.array[float],
-        rate: wp.array[float],
-    ):
-        """Density and the Jacobi multiplier of the unilateral constraint C = max(rho/rho0 - 1, 0).
+    def lambda_pass(reads_rate: bool):
+        """The density pass's kernel; ``reads_rate``: the damped substep's first, which also reads the rate.
 
-        The static walls listed for the slot add their share of ``rho / rho0`` (:func:`fluid_wall_share`);
-        its gradient is kept in ``wall_grad`` for the correction. Does nothing while ``active[0]`` is 0.
-        With ``track_compression``, also sums max(rho/rho0 - 1, 0) into ``compression_bins[0, B)`` and
-        counts the particles in ``[B, 2B)`` (``B = COMPRESSION_BINS``, spreading the atomics). With
-        ``track_peaks`` (a substep's last pass), counts the particles compressed by more than
-        ``PEAK_COMPRESSION`` into ``peaks[0, B)`` and keeps their largest compression in ``peaks[B, 2B)``,
-        until :meth:`~.solver_fluid.FluidSolver.diagnostics` reads and clears them. Compiled ``damped``,
-        ``rate_pass`` ``RATE_READ`` sums ``g dC_i`` from the moves since ``x_start`` into ``rate``, and it
-        and ``RATE_KEPT`` drive the constraint to ``-rate`` (``RATE_NONE``: to 0).
+        Two kernels rather than a branch on the pass: the later passes keep the registers of the undamped
+        one, and only the first pays for the rate's loop.
         """
-        i = wp.tid()
-        pi = slots.particle[i]
-        if pi < 0 or active[0] == 0:
-            return
-        p = params[0]
-        xi4 = slots.xm[i]
-        xi = wp.vec3(xi4[0], xi4[1], xi4[2])
-        rho = p.reference_mass * wp.static(self_weight)(p)
-        me = DensitySlot()
-        me.x = xi
-        me.particle = pi
-        # the sum starts from the particle's own share
-        t = wp.static(density_sum)(slots, i, me, p, vec5(0.0, 0.0, 0.0, rho, 0.0))
-        rho = t[3]
-        grad_i = wp.vec3(t[0], t[1], t[2])
-        grad_sq = t[4]
-        # the walls do not move: their gradient only adds to the particle's own
-        wall = fluid_wall_share(slots, i, xi, p, wall_table, wall_table_grad)
-        wall_g = wp.vec3(wall[0], wall[1], wall[2])
-        rho += wall[3] * p.rest_density
-        grad_i += wall_g
-        wall_grad[i] = wall_g
-        density[i] = rho
-        # the multiplier and the relative density, which the correction reads for each neighbour
-        lam = float(0.0)
-        if wp.static(damped):
-            g = float(0.0)
-            if rate_pass == RATE_READ:
-                me_rate = RateSlot()
+
+        def compute_fluid_density_lambda(
+            params: wp.array[FluidParams],
+            slots: FluidSlots,
+            active: wp.array[wp.int32],
+            wall_table: wp.array[float],
+            wall_table_grad: wp.array[float],
+            track_compression: int,
+            track_peaks: int,
+            rate_pass: int,
+            start: wp.array[wp.vec3],
+            # outputs
+            density: wp.array[float],
+            lambda_rho: wp.array[wp.vec2],
+            wall_grad: wp.array[wp.vec3],
+            compression_bins: wp.array[float],
+            peaks: wp.array[float],
+            rate: wp.array[float],
+        ):
+            """Density and the Jacobi multiplier of the unilateral constraint C = max(rho/rho0 - 1, 0).
+
+            The static walls listed for the slot add their share of ``rho / rho0`` (:func:`fluid_wall_share`);
+            its gradient is kept in ``wall_grad`` for the correction. Does nothing while ``active[0]`` is 0.
+            With ``track_compression``, also sums max(rho/rho0 - 1, 0) into ``compression_bins[0, B)`` and
+            counts the particles in ``[B, 2B)`` (``B = COMPRESSION_BINS``, spreading the atomics). With
+            ``track_peaks`` (a substep's last pass), counts the particles compressed by more than
+            ``PEAK_COMPRESSION`` into ``peaks[0, B)`` and keeps their largest compression in ``peaks[B, 2B)``,
+            until :meth:`~.solver_fluid.FluidSolver.diagnostics` reads and clears them. Compiled ``damped``, it
+            drives the constraint to ``-rate`` for ``rate_pass`` ``RATE_KEPT`` (``RATE_NONE``: to 0); compiled
+            ``reads_rate`` (the substep's first pass), it first sums ``g dC_i`` from the moves since ``start``
+            (the substep's start positions in slot order) into ``rate``, whatever ``rate_pass``.
+            """
+            i = wp.tid()
+            pi = slots.particle[i]
+            if pi < 0 or active[0] == 0:
+                return
+            p = params[0]
+            xi4 = slots.xm[i]
+            xi = wp.vec3(xi4[0], xi4[1], xi4[2])
+            rho = p.reference_mass * wp.static(self_weight)(p)
+            # the sums start from the particle's own share
+            if wp.static(reads_rate):
+                # the substep's first pass reads the motion's compression in the density's neighbour loop
+                moved = xi - start[i]
+                me_rate = DensityRateSlot()
                 me_rate.x = xi
-                me_rate.moved = xi - x_start[pi]
-                me_rate.x_start = x_start
-                moved_in = wp.static(rate_sum)(slots, i, me_rate, p, float(0.0)) + wp.dot(wall_g, me_rate.moved)
-                g = p.compression_damping * moved_in
+                me_rate.particle = pi
+                me_rate.moved = moved
+                me_rate.start = start
+                s = wp.static(density_rate_sum)(slots, i, me_rate, p, vec6(0.0, 0.0, 0.0, rho, 0.0, 0.0))
+                t = vec5(s[0], s[1], s[2], s[3], s[4])
+                moved_in = s[5]
+            else:
+                me = DensitySlot()
+                me.x = xi
+                me.particle = pi
+                t = wp.static(density_sum)(slots, i, me, p, vec5(0.0, 0.0, 0.0, rho, 0.0))
+            rho = t[3]
+            grad_i = wp.vec3(t[0], t[1], t[2])
+            grad_sq = t[4]
+            # the walls do not move: their gradient only adds to the particle's own
+            wall = fluid_wall_share(slots, i, xi, p, wall_table, wall_table_grad)
+            wall_g = wp.vec3(wall[0], wall[1], wall[2])
+            rho += wall[3] * p.rest_density
+            grad_i += wall_g
+            wall_grad[i] = wall_g
+            density[i] = rho
+            # the multiplier and the relative density, which the correction reads for each neighbour
+            lam = float(0.0)
+            if wp.static(reads_rate):
+                g = p.compression_damping * (moved_in + wp.dot(wall_g, moved))
                 rate[i] = g
-            elif rate_pass == RATE_KEPT:
-                g = rate[i]
-            lam = damped_constraint_lambda(rho, grad_i, grad_sq, g, p)
-        else:
-            lam = density_constraint_lambda(rho, grad_i, grad_sq, p)
-        lambda_rho[i] = wp.vec2(lam, rho * p.inv_rest_density)
-        if track_compression != 0:
-            b = i % COMPRESSION_BINS
-            wp.atomic_add(compression_bins, b, wp.max(rho * p.inv_rest_density - 1.0, 0.0))
-            wp.atomic_add(compression_bins, COMPRESSION_BINS + b, 1.0)
-        if track_peaks != 0:
-            c = rho * p.inv_rest_density - 1.0
-            if c > PEAK_COMPRESSION:
+                lam = damped_constraint_lambda(rho, grad_i, grad_sq, g, p)
+            elif wp.static(damped):
+                g = float(0.0)
+                if rate_pass == RATE_KEPT:
+                    g = rate[i]
+                lam = damped_constraint_lambda(rho, grad_i, grad_sq, g, p)
+            else:
+                lam = density_constraint_lambda(rho, grad_i, grad_sq, p)
+            lambda_rho[i] = wp.vec2(lam, rho * p.inv_rest_density)
+            if track_compression != 0:
                 b = i % COMPRESSION_BINS
-                wp.atomic_add(peaks, b, 1.0)
-                wp.atomic_max(peaks, COMPRESSION_BINS + b, c)
+                wp.atomic_add(compression_bins, b, wp.max(rho * p.inv_rest_density - 1.0, 0.0))
+                wp.atomic_add(compression_bins, COMPRESSION_BINS + b, 1.0)
+            if track_peaks != 0:
+                c = rho * p.inv_rest_density - 1.0
+                if c > PEAK_COMPRESSION:
+                    b = i % COMPRESSION_BINS
+                    wp.atomic_add(peaks, b, 1.0)
+                    wp.atomic_max(peaks, COMPRESSION_BINS + b, c)
+
+        name = suffix + ("_reading_rate" if reads_rate else "")
+        return wp.kernel(named_variant(compute_fluid_density_lambda, name))
 
     def apply_fluid_density_correction(
         params: wp.array[FluidParams],
@@ -622,7 +663,8 @@ def density_passes(kernel: str, damped: bool = False) -> DensityPasses:
         moved_xm[i] = wp.vec4(xi[0] + dx[0], xi[1] + dx[1], xi[2] + dx[2], xi4[3])
 
     return DensityPasses(
-        wp.kernel(named_variant(compute_fluid_density_lambda, suffix)),
+        lambda_pass(False),
+        lambda_pass(True) if damped else None,
         wp.kernel(named_variant(apply_fluid_density_correction, suffix)),
         wp.kernel(named_variant(apply_fluid_warm_start, suffix)),
         pair_weight,

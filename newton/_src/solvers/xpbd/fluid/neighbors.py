@@ -176,6 +176,7 @@ def order_fluid_cells(
     particle_mass: wp.array[float],
     particle_world: wp.array[wp.int32],
     mask: int,
+    particle_start: wp.array[wp.vec3],
     # in/out
     carry: wp.array[float],
     # outputs
@@ -186,6 +187,7 @@ def order_fluid_cells(
     slot_of_particle: wp.array[wp.int32],
     wall_count: wp.array[wp.int32],
     carried: wp.array[float],
+    sorted_start: wp.array[wp.vec3],
 ):
     """Put each cell's slots in fluid-index order and gather the particles into them.
 
@@ -199,6 +201,7 @@ def order_fluid_cells(
 
     A value each particle carries from the last substep (``carry``, per particle; empty: none) is
     gathered into ``carried`` with the rest; a left-out particle's is set to 0 (it carries nothing).
+    Where ``sorted_start`` is not empty, each slot's particle's ``particle_start`` is gathered there.
     """
     i = wp.tid()
     key = keys[i]
@@ -227,6 +230,8 @@ def order_fluid_cells(
     sorted_world[place] = particle_world[pi]
     if carry.shape[0] > 0:
         carried[place] = carry[pi]
+    if sorted_start.shape[0] > 0:
+        sorted_start[place] = particle_start[pi]
 
 
 @wp.kernel
@@ -464,6 +469,8 @@ class FluidNeighborSearch:
         # a value per particle that the sort gathers into slot order (see :meth:`carry_values`)
         self.carry = wp.zeros(0, dtype=float, device=device)
         self.carried = self.carry
+        # the positions a build's travel started from, in slot order (see :meth:`gather_start`)
+        self.sorted_start = wp.zeros(0, dtype=wp.vec3, device=device)
 
     def carry_values(self, per_particle: wp.array, per_slot: wp.array) -> None:
         """Let every build gather ``per_particle`` (one float per particle) into ``per_slot`` (slot order).
@@ -473,6 +480,14 @@ class FluidNeighborSearch:
         """
         self.carry = per_particle
         self.carried = per_slot
+
+    def gather_start(self, per_slot: wp.array) -> None:
+        """Let every build gather each slot's start position into ``per_slot`` (one ``vec3`` per slot).
+
+        The start is the build's ``particle_q_start`` (a build without one: its ``particle_q``, no travel).
+        In slot order a neighbour's start is read beside its position, not through its particle index.
+        """
+        self.sorted_start = per_slot
 
     def build(
         self,
@@ -494,7 +509,7 @@ class FluidNeighborSearch:
         contacts in the same launch as the neighbours (else the slots have none).
         """
         self.compute_keys(particle_q, particle_flags, particle_world, params, particle_q_start, particle_qd)
-        self.sort(particle_q, particle_mass, particle_world)
+        self.sort(particle_q, particle_mass, particle_world, particle_q_start=particle_q_start)
         self.scan(walls)
 
     def compute_keys(
@@ -527,7 +542,12 @@ class FluidNeighborSearch:
         )
 
     def sort(
-        self, particle_q: wp.array, particle_mass: wp.array, particle_world: wp.array, allocation_free: bool = False
+        self,
+        particle_q: wp.array,
+        particle_mass: wp.array,
+        particle_world: wp.array,
+        allocation_free: bool = False,
+        particle_q_start: wp.array | None = None,
     ) -> None:
         """Counting-sort the fluid particles by their table entry and gather them (part of :meth:`build`).
 
@@ -536,7 +556,8 @@ class FluidNeighborSearch:
         positions (at ``particle_q``), masses and worlds, and leaves the counts zero. Entry
         ``mask + 1`` holds the left-out particles, which sort last (see the module notes). With
         ``allocation_free`` the entries' offsets come from :class:`~.prefix_sum.ExclusiveScan` (for the body
-        of a CUDA conditional node, which may not allocate as ``wp.utils.array_scan`` does).
+        of a CUDA conditional node, which may not allocate as ``wp.utils.array_scan`` does). The start
+        positions (``particle_q_start``, else ``particle_q``) go to :attr:`sorted_start` where it is kept.
         """
         n = self.slot_count
         device = self.keys.device
@@ -563,6 +584,7 @@ class FluidNeighborSearch:
                 particle_mass,
                 particle_world,
                 self.mask,
+                particle_q if particle_q_start is None else particle_q_start,
                 self.carry,
             ],
             outputs=[
@@ -573,6 +595,7 @@ class FluidNeighborSearch:
                 self.slot_of_particle,
                 self.wall_count,
                 self.carried,
+                self.sorted_start,
             ],
             device=device,
         )

@@ -50,6 +50,7 @@ from .density_constraint import (
     APPLY_AS_XPBD,
     COMPRESSION_SUMS,
     RATE_NONE,
+    RATE_READ,
     ParticleApply,
     density_passes,
     gather_fluid_positions,
@@ -197,8 +198,9 @@ class FluidSolver:
             self.particle_lambda = wp.zeros(model.particle_count if warm else 0, dtype=float)
             #: g dC of each slot, read by the substep's first density pass (fluid_compression_damping)
             self.compression_rate = wp.zeros(n if config.fluid_compression_damping > 0.0 else 0, dtype=float)
-            #: the positions the current substep started from (its first density pass reads the moves since)
-            self.substep_start = wp.zeros(0, dtype=wp.vec3)
+            #: each slot's position at the current substep's start (its first density pass reads the moves since)
+            self.sorted_start = wp.zeros(n if config.fluid_compression_damping > 0.0 else 0, dtype=wp.vec3)
+            self.search.gather_start(self.sorted_start)
             self.warm_lambda = wp.zeros(n if warm else 0, dtype=float)
             self.lambda_sum = wp.zeros(n if warm else 0, dtype=float)
             if warm:
@@ -402,8 +404,6 @@ class FluidSolver:
         """
         self._join()
         m, contacts = self.model, self.contacts
-        if particle_q_start is not None:
-            self.substep_start = particle_q_start
         walls = None
         if particle_q_start is not None and self._has_walls and contacts is not None:
             walls = FluidWallContacts()
@@ -420,7 +420,13 @@ class FluidSolver:
         # (the travel limit writes the positions upstream goes on with: not beside it)
         s.compute_keys(particle_q, m.particle_flags, m.particle_world, self.params, particle_q_start, particle_qd)
         with self.beside() if particle_q_start is not None else contextlib.nullcontext():
-            s.sort(particle_q, m.particle_mass, m.particle_world, allocation_free=allocation_free)
+            s.sort(
+                particle_q,
+                m.particle_mass,
+                m.particle_world,
+                allocation_free=allocation_free,
+                particle_q_start=particle_q_start,
+            )
             s.scan(walls)
         # the build gathered these positions into slot order: the first iteration uses them as they are
         self.slot_content = SlotContent.BUILT
@@ -556,8 +562,9 @@ class FluidSolver:
         first pass, which reads how much the substep's motion compresses each particle, ``RATE_KEPT`` for its
         later passes, ``RATE_NONE`` outside a step's passes.
         """
+        reads = rate_pass == RATE_READ and self.passes.compute_lambda_reading_rate is not None
         wp.launch(
-            self.passes.compute_lambda,
+            self.passes.compute_lambda_reading_rate if reads else self.passes.compute_lambda,
             dim=self.fluid_count,
             inputs=[
                 self.params,
@@ -568,7 +575,7 @@ class FluidSolver:
                 int(track_compression),
                 int(last),
                 rate_pass,
-                self.substep_start,
+                self.sorted_start,
             ],
             outputs=[
                 self.density,
