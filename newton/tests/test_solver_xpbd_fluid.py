@@ -1370,6 +1370,7 @@ def test_concurrent_passes_match_one_stream(test, device):
         "vorticity": {"iterations": 2, "fluid_vorticity": 0.5},
         "warm start": {"iterations": 3, "fluid_warm_start": 0.5},
         "compression damping": {"iterations": 3, "fluid_compression_damping": 0.4},
+        "compression damping, warm start": {"iterations": 2, "fluid_compression_damping": 0.4, "fluid_warm_start": 0.5},
         "tolerance": {"iterations": 3, "fluid_density_tolerance": 0.002},
         "sub-passes": {"iterations": 2, "fluid_max_iterations": 4, "fluid_density_tolerance": 0.002},
     }

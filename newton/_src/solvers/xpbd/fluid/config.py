@@ -167,14 +167,6 @@ class FluidConfig:
         self.fluid_compression_damping = real_in_range(
             "fluid_compression_damping", self.fluid_compression_damping, 0.0, MAX_COMPRESSION_DAMPING
         )
-        if self.fluid_compression_damping > 0.0 and self.fluid_warm_start > 0.0:
-            # the damping reads the warm start's move as motion: together they churned still water at 0.08-0.12 m/s
-            # (docs/formulation.rst, "Compression damping")
-            raise ValueError(
-                f"fluid_compression_damping={self.fluid_compression_damping!r} with "
-                f"fluid_warm_start={self.fluid_warm_start!r} is invalid: expected fluid_warm_start 0 while the "
-                "compression damping is on"
-            )
         if not isinstance(self.fluid_density_kernel, str) or self.fluid_density_kernel not in DENSITY_KERNELS:
             raise ValueError(
                 f"fluid_density_kernel={self.fluid_density_kernel!r} is invalid: expected one of "

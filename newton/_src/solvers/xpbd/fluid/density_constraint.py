@@ -113,8 +113,8 @@ class DensityRateSlot:
 
     x: wp.vec3  # position [m]
     particle: int  # particle index
-    moved: wp.vec3  # its move in the substep so far, x* - x0 [m]
-    start: wp.array[wp.vec3]  # every slot's position at the substep's start, in slot order (the build gathers it)
+    moved: wp.vec3  # its move in the substep up to the build, x* - x0 [m]
+    moves: wp.array[wp.vec3]  # every slot's move up to the build, in slot order (the build gathers them) [m]
 
 
 # kinds of density pass under fluid_compression_damping: the substep's first (reads the motion's compression),
@@ -365,8 +365,8 @@ def density_passes(kernel: str, damped: bool = False) -> DensityPasses:
     def density_rate_term(slots: FluidSlots, j: int, me: DensityRateSlot, p: FluidParams):
         """:func:`density_term` and neighbour ``j``'s share of ``dC_i = sum_j m / rho0 W'(|r|) n . (moved_i - moved_j)``.
 
-        One neighbour loop for both: the substep's first pass reads each pair once. The start positions
-        are in slot order, so a neighbour's is read beside its position.
+        One neighbour loop for both: the substep's first pass reads each pair once. The moves are in slot
+        order, so a neighbour's is read beside its position.
         """
         xj4 = slots.xm[j]
         xj = wp.vec3(xj4[0], xj4[1], xj4[2])
@@ -379,8 +379,7 @@ def density_passes(kernel: str, damped: bool = False) -> DensityPasses:
         if r2 > 0.0:
             dist = wp.sqrt(r2)
             slope = wp.static(density_slope)(dist, p.h - dist, p)
-            moved_j = xj - me.start[j]
-            rate = slope * p.reference_mass * p.inv_rest_density * wp.dot(r / dist, me.moved - moved_j)
+            rate = slope * p.reference_mass * p.inv_rest_density * wp.dot(r / dist, me.moved - me.moves[j])
         return vec6(t[0], t[1], t[2], t[3], t[4], rate)
 
     density_rate_term = wp.func(named_variant(density_rate_term, suffix))
@@ -455,7 +454,7 @@ def density_passes(kernel: str, damped: bool = False) -> DensityPasses:
             track_compression: int,
             track_peaks: int,
             rate_pass: int,
-            start: wp.array[wp.vec3],
+            moves: wp.array[wp.vec3],
             # outputs
             density: wp.array[float],
             lambda_rho: wp.array[wp.vec2],
@@ -474,8 +473,8 @@ def density_passes(kernel: str, damped: bool = False) -> DensityPasses:
             ``PEAK_COMPRESSION`` into ``peaks[0, B)`` and keeps their largest compression in ``peaks[B, 2B)``,
             until :meth:`~.solver_fluid.FluidSolver.diagnostics` reads and clears them. Compiled ``damped``, it
             drives the constraint to ``-rate`` for ``rate_pass`` ``RATE_KEPT`` (``RATE_NONE``: to 0); compiled
-            ``reads_rate`` (the substep's first pass), it first sums ``g dC_i`` from the moves since ``start``
-            (the substep's start positions in slot order) into ``rate``, whatever ``rate_pass``.
+            ``reads_rate`` (the substep's first pass), it first sums ``g dC_i`` from ``moves`` (each slot's move
+            from the substep's start to the build, in slot order) into ``rate``, whatever ``rate_pass``.
             """
             i = wp.tid()
             pi = slots.particle[i]
@@ -488,12 +487,12 @@ def density_passes(kernel: str, damped: bool = False) -> DensityPasses:
             # the sums start from the particle's own share
             if wp.static(reads_rate):
                 # the substep's first pass reads the motion's compression in the density's neighbour loop
-                moved = xi - start[i]
+                moved = moves[i]
                 me_rate = DensityRateSlot()
                 me_rate.x = xi
                 me_rate.particle = pi
                 me_rate.moved = moved
-                me_rate.start = start
+                me_rate.moves = moves
                 s = wp.static(density_rate_sum)(slots, i, me_rate, p, vec6(0.0, 0.0, 0.0, rho, 0.0, 0.0))
                 t = vec5(s[0], s[1], s[2], s[3], s[4])
                 moved_in = s[5]

@@ -187,7 +187,7 @@ def order_fluid_cells(
     slot_of_particle: wp.array[wp.int32],
     wall_count: wp.array[wp.int32],
     carried: wp.array[float],
-    sorted_start: wp.array[wp.vec3],
+    sorted_moved: wp.array[wp.vec3],
 ):
     """Put each cell's slots in fluid-index order and gather the particles into them.
 
@@ -201,7 +201,8 @@ def order_fluid_cells(
 
     A value each particle carries from the last substep (``carry``, per particle; empty: none) is
     gathered into ``carried`` with the rest; a left-out particle's is set to 0 (it carries nothing).
-    Where ``sorted_start`` is not empty, each slot's particle's ``particle_start`` is gathered there.
+    Where ``sorted_moved`` is not empty, each slot's particle's move from ``particle_start`` to ``particle_q``
+    is gathered there.
     """
     i = wp.tid()
     key = keys[i]
@@ -230,8 +231,8 @@ def order_fluid_cells(
     sorted_world[place] = particle_world[pi]
     if carry.shape[0] > 0:
         carried[place] = carry[pi]
-    if sorted_start.shape[0] > 0:
-        sorted_start[place] = particle_start[pi]
+    if sorted_moved.shape[0] > 0:
+        sorted_moved[place] = x - particle_start[pi]
 
 
 @wp.kernel
@@ -469,8 +470,8 @@ class FluidNeighborSearch:
         # a value per particle that the sort gathers into slot order (see :meth:`carry_values`)
         self.carry = wp.zeros(0, dtype=float, device=device)
         self.carried = self.carry
-        # the positions a build's travel started from, in slot order (see :meth:`gather_start`)
-        self.sorted_start = wp.zeros(0, dtype=wp.vec3, device=device)
+        # each slot's travel in the build's step so far (see :meth:`gather_moves`)
+        self.sorted_moved = wp.zeros(0, dtype=wp.vec3, device=device)
 
     def carry_values(self, per_particle: wp.array, per_slot: wp.array) -> None:
         """Let every build gather ``per_particle`` (one float per particle) into ``per_slot`` (slot order).
@@ -481,13 +482,14 @@ class FluidNeighborSearch:
         self.carry = per_particle
         self.carried = per_slot
 
-    def gather_start(self, per_slot: wp.array) -> None:
-        """Let every build gather each slot's start position into ``per_slot`` (one ``vec3`` per slot).
+    def gather_moves(self, per_slot: wp.array) -> None:
+        """Let every build gather each slot's move ``particle_q - particle_q_start`` into ``per_slot`` (a ``vec3`` a slot).
 
-        The start is the build's ``particle_q_start`` (a build without one: its ``particle_q``, no travel).
-        In slot order a neighbour's start is read beside its position, not through its particle index.
+        A build without ``particle_q_start`` gathers no travel (zero). Gathered by the sort, a neighbour's move is
+        read beside its position, not through its particle index, and stays what the build saw after later passes
+        (the warm start's) have moved the slots' positions.
         """
-        self.sorted_start = per_slot
+        self.sorted_moved = per_slot
 
     def build(
         self,
@@ -556,8 +558,8 @@ class FluidNeighborSearch:
         positions (at ``particle_q``), masses and worlds, and leaves the counts zero. Entry
         ``mask + 1`` holds the left-out particles, which sort last (see the module notes). With
         ``allocation_free`` the entries' offsets come from :class:`~.prefix_sum.ExclusiveScan` (for the body
-        of a CUDA conditional node, which may not allocate as ``wp.utils.array_scan`` does). The start
-        positions (``particle_q_start``, else ``particle_q``) go to :attr:`sorted_start` where it is kept.
+        of a CUDA conditional node, which may not allocate as ``wp.utils.array_scan`` does). The moves from
+        ``particle_q_start`` (else none) go to :attr:`sorted_moved` where it is kept.
         """
         n = self.slot_count
         device = self.keys.device
@@ -595,7 +597,7 @@ class FluidNeighborSearch:
                 self.slot_of_particle,
                 self.wall_count,
                 self.carried,
-                self.sorted_start,
+                self.sorted_moved,
             ],
             device=device,
         )

@@ -198,9 +198,9 @@ class FluidSolver:
             self.particle_lambda = wp.zeros(model.particle_count if warm else 0, dtype=float)
             #: g dC of each slot, read by the substep's first density pass (fluid_compression_damping)
             self.compression_rate = wp.zeros(n if config.fluid_compression_damping > 0.0 else 0, dtype=float)
-            #: each slot's position at the current substep's start (its first density pass reads the moves since)
-            self.sorted_start = wp.zeros(n if config.fluid_compression_damping > 0.0 else 0, dtype=wp.vec3)
-            self.search.gather_start(self.sorted_start)
+            #: each slot's move from the current substep's start to its build (its first density pass reads them)
+            self.sorted_moved = wp.zeros(n if config.fluid_compression_damping > 0.0 else 0, dtype=wp.vec3)
+            self.search.gather_moves(self.sorted_moved)
             self.warm_lambda = wp.zeros(n if warm else 0, dtype=float)
             self.lambda_sum = wp.zeros(n if warm else 0, dtype=float)
             if warm:
@@ -575,7 +575,7 @@ class FluidSolver:
                 int(track_compression),
                 int(last),
                 rate_pass,
-                self.sorted_start,
+                self.sorted_moved,
             ],
             outputs=[
                 self.density,
