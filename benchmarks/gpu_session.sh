@@ -450,8 +450,8 @@ for what in "$@"; do
       # fluid_compression_damping's cost (docs/performance.rst) on the 100k and 1M dam breaks with each kernel,
       # alternated: off; on with its rate read in a second neighbour loop through the particle index
       # (docs/archive/patches/compression_damping_fused_read.patch taken off); on as it is (the rate in the density's
-      # own loop, the start positions in slot order). A call brings few files back: the records go in one archive.
-      # DAMPING_COST_SIZES="100k" (or "1m") runs one size (a cold machine compiles for minutes)
+      # own loop, the moves gathered in slot order by the sort). A call brings few files back: the records go in one
+      # archive. DAMPING_COST_SIZES="100k" (or "1m") runs one size (a cold machine compiles for minutes)
       for size in ${DAMPING_COST_SIZES:-100k 1m}; do
         sizeflags=""
         [ $size = 1m ] && sizeflags="--particles 1000000 --warmup-frames 20 --frames 10"
