@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/archive/performance_notebook.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|coarse-damping|damping-interval|damping-interval-box|damping-interval-wave|damping-interval-pool|pool-settle|pool-pump|pool-one-kernel|box-one-kernel|compression-damping|compression-damping-cost|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|exact-i2|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|coarse-damping|damping-interval|damping-interval-box|damping-interval-wave|damping-interval-pool|pool-settle|pool-pump|pool-one-kernel|box-one-kernel|compression-damping|compression-damping-cost|odd-count-step|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|exact-i2|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
 # tests and usd need usd-core (pxr) beside newton and warp; the rest runs without it
 set -u
 out=${1:?output folder}; shift
@@ -466,6 +466,25 @@ for what in "$@"; do
       done
       (cd "$out" && tar czf "compression_damping_cost_${DAMPING_COST_SIZES:-all}_${gpu}.tgz" \
         dam_break_*_compression_damping_*_${gpu}.json && rm dam_break_*_compression_damping_*_${gpu}.json) ;;
+    odd-count-step)
+      # odd pass counts with the step bounded at a full correction of the shortest wave (docs/validation.rst, "Odd pass
+      # counts hum"; docs/archive/patches/odd_count_full_step.patch) against main: the 100k dam break at 8 x 1, 8 x 3
+      # and 8 x 4 with the tolerance on the iterations (its first pass is one), and the 100k pool at 8 x 3. The
+      # records go in one archive (a call brings few files back)
+      for v in main odd_full; do
+        [ $v = odd_full ] && archived_patch on docs/archive/patches/odd_count_full_step.patch
+        for run in "i1 --iterations 1" "i3 --iterations 3" "i4_tolerance --iterations 4 --density-tolerance 0.005"; do
+          set -- $run
+          tag=$1; shift
+          python3 -m benchmarks dam_break "$@" --trials 2 --json "$out/dam_break_100k_${tag}_${v}_${gpu}.json" 2>&1 \
+            | grep -A1 '^device' | tail -1
+        done
+        python3 -m benchmarks rest_column --device cuda:0 --n 50 --layers 40 --iterations 3 --settle 2 7 \
+          --json "$out/rest_column_50x50x40_i3_${v}_${gpu}.json" 2>&1 | grep -A3 '^device'
+        [ $v = odd_full ] && archived_patch off docs/archive/patches/odd_count_full_step.patch
+      done
+      (cd "$out" && tar czf "odd_count_step_${gpu}.tgz" dam_break_100k_i*_${gpu}.json rest_column_50x50x40_i3_*_${gpu}.json \
+        && rm dam_break_100k_i*_${gpu}.json rest_column_50x50x40_i3_*_${gpu}.json) ;;
     ncu)
       ncu --kernel-name regex:'build_fluid|compute_fluid_density|apply_fluid_density|apply_fluid_visc' \
         --launch-skip 40 --launch-count 4 --section SpeedOfLight --section Occupancy --section LaunchStats \
