@@ -358,8 +358,7 @@ _FLUID_DOC = """
                 ``"poly6"``.
             fluid_compression_damping: Share of the compression a substep's motion adds that its density passes
                 also remove [dimensionless], in [0, 0.4], set at construction; 0 is off. Damps a deep column's ring
-                as strongly as the passes act on it; a load at rest is held as before. Not with ``fluid_warm_start``.
-                Defaults to 0.
+                as strongly as the passes act on it; a load at rest is held as before. Defaults to 0.
 """
 
 

@@ -327,13 +327,14 @@ def density_passes(kernel: str, damped: bool = False) -> DensityPasses:
     pair_slope = wp.func(named_variant(pair_slope, suffix))
     self_weight = wp.func(named_variant(self_weight, suffix))
 
-    def pair_density_terms(r: wp.vec3, r2: float, particle: int, slots: FluidSlots, j: int, p: FluidParams):
-        """A pair's ``(grad C_i w.r.t. x_j, m W_ij, its gradient squared)`` at ``r = x_i - x_j`` within ``h``.
+    def pair_density_terms(
+        r: wp.vec3, r2: float, dist: float, particle: int, slots: FluidSlots, j: int, p: FluidParams
+    ):
+        """A pair's ``(grad C_i w.r.t. x_j, m W_ij, its gradient squared)`` at ``r = x_i - x_j`` (``|r| = dist`` < ``h``).
 
         ``m`` is the reference mass, not ``m_j``: the constraint is on the number density, so that a
         particle's rest density is in proportion to its own mass and fluids of different density mix.
         """
-        dist = wp.sqrt(r2)
         n = pair_direction(r, dist, particle, slots.particle, j, p)
         d = p.h - dist
         g = n * wp.static(pair_slope)(d, p) * (p.reference_mass * p.inv_rest_density)
@@ -349,7 +350,7 @@ def density_passes(kernel: str, damped: bool = False) -> DensityPasses:
         r2 = wp.dot(r, r)
         if r2 >= p.h2:
             return vec5(0.0)
-        return wp.static(pair_density_terms)(r, r2, me.particle, slots, j, p)
+        return wp.static(pair_density_terms)(r, r2, wp.sqrt(r2), me.particle, slots, j, p)
 
     density_term = wp.func(named_variant(density_term, suffix))
     density_sum = neighbor_sum(density_term, pairwise=True)
@@ -374,10 +375,10 @@ def density_passes(kernel: str, damped: bool = False) -> DensityPasses:
         r2 = wp.dot(r, r)
         if r2 >= p.h2:
             return vec6(0.0)
-        t = wp.static(pair_density_terms)(r, r2, me.particle, slots, j, p)
+        dist = wp.sqrt(r2)
+        t = wp.static(pair_density_terms)(r, r2, dist, me.particle, slots, j, p)
         rate = float(0.0)
         if r2 > 0.0:
-            dist = wp.sqrt(r2)
             slope = wp.static(density_slope)(dist, p.h - dist, p)
             rate = slope * p.reference_mass * p.inv_rest_density * wp.dot(r / dist, me.moved - me.moves[j])
         return vec6(t[0], t[1], t[2], t[3], t[4], rate)
