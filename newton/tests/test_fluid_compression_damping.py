@@ -11,6 +11,7 @@ from newton.tests.unittest_utils import add_function_test, get_test_devices
 
 from newton._src.solvers.xpbd.fluid.calibration import stable_pass_bound
 from newton.tests.test_fluid_coarse_correction import column
+from newton.tests.test_fluid_still_water import closing_kept
 
 
 def substep_radius(kept: float, damping: float) -> float:
@@ -21,21 +22,26 @@ def substep_radius(kept: float, damping: float) -> float:
 
 
 def test_stable_step_with_damping(test, device):
-    # the bound on relaxation x eigenvalue is where the substep's least stable mode reaches the unit circle:
-    # below it every mode of 1 to 3 passes stays inside, just above it one leaves (for an even count the bound,
-    # 2, is where the pass itself overshoots and (1 - w mu)^k reaches 1)
-    test.assertEqual(stable_pass_bound(1, 1), 1.0 + 3.0**-1.0)
-    test.assertEqual(stable_pass_bound(2, 2, 0.4), 2.0)
+    # a fixed count keeps the even bound with the damping: an odd one's last pass takes half the step, so every
+    # mode keeps p >= 0 of its error, inside the damped substep's stable range (2 g - 1) / (3 + 2 g) < p < 1
     for damping in (0.0, 0.2, 0.4):
         for passes in (1, 2, 3):
-            bound = stable_pass_bound(passes, passes, damping)
-            steps = np.linspace(0.0, 0.999 * bound, 400)
-            inside = max(substep_radius((1.0 - s) ** passes, damping) for s in steps[1:])
+            test.assertEqual(stable_pass_bound(passes, passes, damping), 2.0)
+            steps = np.linspace(0.0, 0.999 * 2.0, 400)[1:]
+            inside = max(substep_radius(closing_kept(s, passes), damping) for s in steps)
             test.assertLess(inside, 1.0 + 1.0e-9, msg=f"g {damping}, {passes} passes")
-            if passes % 2:
-                test.assertGreater(substep_radius((1.0 - 1.01 * bound) ** passes, damping), 1.0)
-    # an odd count narrows the step as the damping grows: one pass 4/3 undamped, 1.05 at 0.4
-    test.assertLess(stable_pass_bound(1, 1, 0.4), 1.06)
+        # a count decided on the device: its fewest odd count's bound is where the substep's least stable mode
+        # reaches the unit circle; below it every count of the range stays inside, just above it one leaves
+        for fewest, most in ((1, 2), (1, 3), (3, 4)):
+            bound = stable_pass_bound(fewest, most, damping)
+            steps = np.linspace(0.0, 0.999 * bound, 400)[1:]
+            for passes in range(fewest, most + 1):
+                inside = max(substep_radius((1.0 - s) ** passes, damping) for s in steps)
+                test.assertLess(inside, 1.0 + 1.0e-9, msg=f"g {damping}, {passes} of {fewest}-{most} passes")
+            test.assertGreater(substep_radius((1.0 - 1.01 * bound) ** fewest, damping), 1.0)
+    # there the damping narrows the step: one to two passes 4/3 undamped, 1.05 at 0.4
+    test.assertEqual(stable_pass_bound(1, 2), 1.0 + 3.0**-1.0)
+    test.assertLess(stable_pass_bound(1, 2, 0.4), 1.06)
     test.assertLess(stable_pass_bound(1, 3, 0.4), stable_pass_bound(1, 3))
 
 

@@ -322,7 +322,8 @@ _FLUID_DOC = """
                 field removed per 1/480 s [dimensionless], in [0, 1]; 0 is off. Defaults to 0.1.
             fluid_vorticity: Vorticity confinement strength [m/s], >= 0; 0 is off. Defaults to 0.
             fluid_relaxation: Scale of each Jacobi density correction [dimensionless], in (0, 2]. Defaults to None:
-                the largest step stable for the kernel and the pass count (the property reads the value in use).
+                the largest step stable for the kernel and the pass count (the property reads the value in use; an
+                odd fixed count's last pass takes half of it).
             fluid_density_ramp: Compression (of rho/rho0 - 1) over which the density constraint ramps in
                 [dimensionless], in [0, 0.01]. Defaults to 0.
             fluid_max_neighbors: Neighbours kept per particle, in [0, 4096]; 0 keeps the whole neighbourhood.

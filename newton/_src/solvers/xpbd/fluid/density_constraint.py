@@ -183,9 +183,9 @@ def gather_fluid_positions(
 
 
 @wp.func
-def relaxed_correction(dx: wp.vec3, p: FluidParams):
-    """A density correction scaled by ``fluid_relaxation`` and bounded to ``max_correction`` per pass."""
-    dx *= p.relaxation
+def relaxed_correction(dx: wp.vec3, relaxation: float, p: FluidParams):
+    """A density correction scaled by ``relaxation`` and bounded to ``max_correction`` per pass."""
+    dx *= relaxation
     dx_len = wp.length(dx)
     if dx_len > p.max_correction:
         dx *= p.max_correction / dx_len
@@ -549,6 +549,7 @@ def density_passes(kernel: str, damped: bool = False) -> DensityPasses:
         wall_grad: wp.array[wp.vec3],
         apply: ParticleApply,
         store_warm: int,
+        closing: int,
         # outputs
         particle_deltas: wp.array[wp.vec3],
         lambda_sum: wp.array[float],
@@ -562,7 +563,8 @@ def density_passes(kernel: str, damped: bool = False) -> DensityPasses:
         corrected position goes to ``apply.xm`` (see :class:`ParticleApply`). With the warm start, the
         multiplier is added to the substep's sum ``lambda_sum``; with ``store_warm`` (the substep's last
         correction), ``warm_start`` times that sum is kept in ``particle_lambda`` for the next substep
-        (as :func:`store_fluid_warm_start` does, without a pass of its own).
+        (as :func:`store_fluid_warm_start` does, without a pass of its own). ``closing``: the last pass of an
+        odd count, which takes ``closing_relaxation``.
         """
         i = wp.tid()
         pi = slots.particle[i]
@@ -593,7 +595,10 @@ def density_passes(kernel: str, damped: bool = False) -> DensityPasses:
         acc = wp.static(density_correction_sum)(slots, i, me, p, wp.spatial_vector(wp.vec3(0.0), wp.vec3(0.0)))
         dx = wp.spatial_top(acc) + wall_g * lam_i
         coh = wp.spatial_bottom(acc)
-        dx = relaxed_correction(dx, p)
+        relaxation = p.relaxation
+        if closing != 0:
+            relaxation = p.closing_relaxation
+        dx = relaxed_correction(dx, relaxation, p)
         if p.cohesion > 0.0:
             # the bias is bounded so a crowded neighbourhood cannot pull harder than one rest spacing allows
             coh *= p.cohesion
@@ -658,7 +663,7 @@ def density_passes(kernel: str, damped: bool = False) -> DensityPasses:
         me.particle = pi
         me.warm_lambda = warm_lambda
         dx = wp.static(warm_start_sum)(slots, i, me, p, wp.vec3(wall[0], wall[1], wall[2]) * lam_i)
-        dx = relaxed_correction(dx, p)
+        dx = relaxed_correction(dx, p.relaxation, p)
         particle_deltas[pi] = particle_deltas[pi] + dx
         moved_xm[i] = wp.vec4(xi[0] + dx[0], xi[1] + dx[1], xi[2] + dx[2], xi4[3])
 

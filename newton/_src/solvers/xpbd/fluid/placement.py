@@ -285,7 +285,7 @@ def relaxation_kernel(kernel: str):
         me.lambda_rho = lambda_rho
         zero = wp.spatial_vector(wp.vec3(0.0), wp.vec3(0.0))
         dx = wp.spatial_top(wp.static(passes.density_correction_sum)(slots, i, me, p, zero)) + wall_grad[i] * me.lam
-        dx = relaxed_correction(dx, p)
+        dx = relaxed_correction(dx, p.relaxation, p)
         x0 = wp.vec3(xm[0], xm[1], xm[2])
         # the heavy ball: the last pass's move carried on, so a long wave (the whole block spreading)
         # converges in about as many passes as it is wide, not as its square; only while the particle is

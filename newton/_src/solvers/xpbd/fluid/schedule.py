@@ -200,7 +200,9 @@ class FixedPasses:
         predict = apply is not None and active is f.always_active
         # (a schedule that decides on the device does not know the last correction: a pass after the step stores)
         store = f.warm_start_on() and not self.tolerance and f.iteration == iterations
-        f.correct(particle_deltas, active, particle_q if predict else None, apply, store_warm=store)
+        # an odd count's last pass takes the closing step (calibration.stable_pass_bound)
+        closing = f.iteration == f.closing_iteration
+        f.correct(particle_deltas, active, particle_q if predict else None, apply, store_warm=store, closing=closing)
         f.warm_stored = f.warm_stored or store
         if predict:
             f.swap_slot_buffers()

@@ -21,6 +21,7 @@ import warp as wp
 
 from ....geometry import ParticleFlags
 from .calibration import (
+    CLOSING_PASS_SHARE,
     ONE_KERNEL_EXPONENT,
     WALL_TABLE_SIZE,
     lattice_density,
@@ -141,6 +142,8 @@ class FluidSolver:
             fewest, most = iterations, iterations
         #: the relaxation in use while ``fluid_relaxation`` is None (see :func:`stable_relaxation`)
         self.default_relaxation = stable_relaxation(d, h, fewest, most, kernel, config.fluid_compression_damping)
+        #: the XPBD iteration whose pass takes the closing step: the last of a fixed odd count, else none (0)
+        self.closing_iteration = iterations if fewest == most and iterations % 2 == 1 else 0
 
         if config.fluid_max_neighbors > 0:
             capacity, capped = config.fluid_max_neighbors, True
@@ -334,6 +337,9 @@ class FluidSolver:
         scale = self.lattice_density / self.rest_density
         p.epsilon = EPSILON_RELATIVE * self.rest_grad_sq * scale * scale
         p.relaxation = self.default_relaxation if c.fluid_relaxation is None else c.fluid_relaxation
+        # the default step lets an odd count's last pass correct the shortest wave at most fully; a relaxation
+        # the user sets is used for every pass
+        p.closing_relaxation = p.relaxation * CLOSING_PASS_SHARE if c.fluid_relaxation is None else p.relaxation
         p.density_ramp = c.fluid_density_ramp
         p.max_correction = MAX_CORRECTION_FRACTION * d
         p.max_displacement = min(c.fluid_max_displacement * d, MAX_DISPLACEMENT_OFF)
@@ -522,6 +528,7 @@ class FluidSolver:
         apply: tuple | None = None,
         advance: bool = False,
         store_warm: bool = False,
+        closing: bool = False,
     ) -> None:
         m = self.model
         applied = self._apply_off
@@ -547,6 +554,7 @@ class FluidSolver:
                 self.wall_grad,
                 applied,
                 int(store_warm),
+                int(closing),
             ],
             outputs=[particle_deltas, self.lambda_sum, self.particle_lambda],
             device=self.device,

@@ -59,6 +59,7 @@ class FluidParams:
     rest_distance: float  # [m]
     epsilon: float  # regulariser of the lambda denominator [1/m^2]
     relaxation: float
+    closing_relaxation: float  # the relaxation of an odd count's last pass (calibration.CLOSING_PASS_SHARE)
     density_ramp: float  # compression over which the density constraint ramps in (0: it switches on at rest density)
     max_correction: float  # bound of one iteration's density correction [m]
     max_displacement: float  # bound of a fluid particle's travel in one substep [m]
