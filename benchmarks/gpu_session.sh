@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/archive/performance_notebook.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|coarse-damping|damping-interval|damping-interval-box|damping-interval-wave|damping-interval-pool|pool-settle|pool-pump|pool-one-kernel|box-one-kernel|compression-damping|compression-damping-cost|odd-count-step|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|exact-i2|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|coarse-damping|damping-interval|damping-interval-box|damping-interval-wave|damping-interval-pool|pool-settle|pool-pump|pool-one-kernel|box-one-kernel|compression-damping|compression-damping-cost|odd-count-step|odd-count-pool|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|exact-i2|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
 # tests and usd need usd-core (pxr) beside newton and warp; the rest runs without it
 set -u
 out=${1:?output folder}; shift
@@ -466,24 +466,30 @@ for what in "$@"; do
       done
       (cd "$out" && tar czf "compression_damping_cost_${DAMPING_COST_SIZES:-all}_${gpu}.tgz" \
         dam_break_*_compression_damping_*_${gpu}.json && rm dam_break_*_compression_damping_*_${gpu}.json) ;;
-    odd-count-step)
+    odd-count-step|odd-count-pool)
       # odd fixed pass counts, whose last pass takes half the default step (docs/validation.rst, "Odd pass counts"),
       # against every pass at the step they took before (the linear bound at -1/3, given as fluid_relaxation, so no
-      # pass closes): the 100k dam break at 8 x 1 and 8 x 3, the 100k pool at 8 x 3; and the defaults' dam break
-      # (8 x 2, the physics bitwise unchanged). The records go in one archive (a call brings few files back)
-      python3 -m benchmarks dam_break --trials 3 --json "$out/dam_break_100k_i2_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+      # pass closes). odd-count-step: the 100k dam break at 8 x 1 and 8 x 3, and at the defaults (8 x 2, the physics
+      # bitwise unchanged); odd-count-pool: the 100k pool at 8 x 3. The records go in one archive per mode (a call
+      # brings few files back)
+      [ $what = odd-count-step ] && python3 -m benchmarks dam_break --trials 3 --json "$out/dam_break_100k_i2_${gpu}.json" \
+        2>&1 | grep -A1 '^device' | tail -1
       for n in 1 3; do
+        [ $what = odd-count-pool ] && [ $n = 1 ] && continue
         before=$(python3 -c "from newton._src.solvers.xpbd.fluid.calibration import stable_relaxation as s; print(repr(s(1.0, 1.8, $n, $n + 1)))")
         for v in closing before; do
           step=""; [ $v = before ] && step="--relaxation $before"
-          python3 -m benchmarks dam_break --iterations $n $step --trials 2 \
-            --json "$out/dam_break_100k_i${n}_${v}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
-          [ $n = 3 ] && python3 -m benchmarks rest_column --device cuda:0 --n 50 --layers 40 --iterations 3 $step \
-            --settle 2 7 --json "$out/rest_column_50x50x40_i3_${v}_${gpu}.json" 2>&1 | grep -A3 '^device'
+          if [ $what = odd-count-step ]; then
+            python3 -m benchmarks dam_break --iterations $n $step --trials 2 \
+              --json "$out/dam_break_100k_i${n}_${v}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+          else
+            python3 -m benchmarks rest_column --device cuda:0 --n 50 --layers 40 --iterations 3 $step --settle 2 7 \
+              --json "$out/rest_column_50x50x40_i3_${v}_${gpu}.json" 2>&1 | grep -A3 '^device'
+          fi
         done
       done
-      (cd "$out" && tar czf "odd_count_step_${gpu}.tgz" dam_break_100k_i*_${gpu}.json rest_column_50x50x40_i3_*_${gpu}.json \
-        && rm dam_break_100k_i*_${gpu}.json rest_column_50x50x40_i3_*_${gpu}.json) ;;
+      (cd "$out" && files=$(ls dam_break_100k_i*_${gpu}.json rest_column_50x50x40_i3_*_${gpu}.json 2>/dev/null) \
+        && tar czf "${what//-/_}_${gpu}.tgz" $files && rm $files) ;;
     ncu)
       ncu --kernel-name regex:'build_fluid|compute_fluid_density|apply_fluid_density|apply_fluid_visc' \
         --launch-skip 40 --launch-count 4 --section SpeedOfLight --section Occupancy --section LaunchStats \
