@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/archive/performance_notebook.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|coarse-damping|damping-interval|damping-interval-box|damping-interval-wave|damping-interval-pool|pool-settle|pool-pump|pool-one-kernel|box-one-kernel|compression-damping|compression-damping-cost|odd-count-step|odd-count-pool|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|exact-i2|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|coarse-damping|damping-interval|damping-interval-box|damping-interval-wave|damping-interval-pool|pool-settle|pool-pump|pool-one-kernel|box-one-kernel|box-starts|compression-damping|compression-damping-cost|odd-count-step|odd-count-pool|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|exact-i2|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
 # tests and usd need usd-core (pxr) beside newton and warp; the rest runs without it
 set -u
 out=${1:?output folder}; shift
@@ -429,6 +429,15 @@ for what in "$@"; do
         python3 docs/validation/floating_box/repeat_runs.py --device cuda:0 --runs 12 --offset 1e-6 --density-kernel $k \
           --json "$out/floating_box_offsets_${k}_${gpu}.json" 2>&1 | grep '^damping'
       done ;;
+    box-starts)
+      # the floating box's twelve starts 1 mm apart (0 to 11 mm off centre: independent draws, where starts 1 um apart
+      # all sample the centred box), at the defaults and with the one kernel and the compression damping
+      # (docs/validation.rst, "Floating box")
+      python3 docs/validation/floating_box/repeat_runs.py --device cuda:0 --runs 12 --offset 1e-3 \
+        --json "$out/floating_box_offsets_1mm_poly6_${gpu}.json" 2>&1 | grep 'bounds met'
+      python3 docs/validation/floating_box/repeat_runs.py --device cuda:0 --runs 12 --offset 1e-3 --density-kernel one_kernel \
+        --compression-damping 0.4 --json "$out/floating_box_offsets_1mm_one_kernel_damping_0.4_${gpu}.json" 2>&1 \
+        | grep 'bounds met' ;;
     compression-damping)
       # fluid_compression_damping (docs/formulation.rst, "Compression damping"): its cost on the 100k dam break with
       # each kernel, alternated; the one kernel's 100k pool and floating box with it at 0.4
@@ -488,7 +497,7 @@ for what in "$@"; do
           fi
         done
       done
-      (cd "$out" && files=$(ls dam_break_100k_i*_${gpu}.json rest_column_50x50x40_i3_*_${gpu}.json 2>/dev/null) \
+      (cd "$out" && files=$(ls dam_break_100k_i*_${gpu}.json rest_column_50x50x40_i3_*_${gpu}.json 2>/dev/null || true) \
         && tar czf "${what//-/_}_${gpu}.tgz" $files && rm $files) ;;
     ncu)
       ncu --kernel-name regex:'build_fluid|compute_fluid_density|apply_fluid_density|apply_fluid_visc' \
