@@ -12,6 +12,7 @@ from newton.tests.unittest_utils import add_function_test, get_test_devices
 
 from newton._src.solvers.xpbd.fluid.calibration import (
     CLOSING_PASS_SHARE,
+    JACOBI_STEP_MARGIN,
     jacobi_spectral_radius,
     stable_pass_bound,
     stable_relaxation,
@@ -71,11 +72,12 @@ def test_stable_step_follows_the_pass_count(test, device):
         test.assertEqual(stable_pass_bound(n, n), 2.0)
     # so no mode below the bound keeps a negative share (which flips its sign every substep: the hum)
     for n in (1, 3, 5):
-        steps = np.linspace(0.0, 2.0, 401)
+        bound = stable_pass_bound(n, n)
+        steps = np.linspace(0.0, bound, 401)
         test.assertGreaterEqual(min(closing_kept(s, n) for s in steps), 0.0)
-        # without the closing pass a mode at the default step would keep a negative share (below -1/3, unstable,
-        # for 1 and 3 passes)
-        test.assertLess((1.0 - 0.875 * 2.0) ** n, 0.0 if n > 3 else -1.0 / 3.0)
+        # without the closing pass the shortest wave at the default step (the margin of the bound) would keep a
+        # negative share (below -1/3, unstable, for 1 and 3 passes)
+        test.assertLess((1.0 - JACOBI_STEP_MARGIN * bound) ** n, 0.0 if n > 3 else -1.0 / 3.0)
     # a count decided on the device (a tolerance) may stop at any count in its range: the least bound over
     # them, its fewest odd count's, where (1 - w mu)^n reaches -1/3
     test.assertAlmostEqual(stable_pass_bound(1, 2), 4.0 / 3.0)
