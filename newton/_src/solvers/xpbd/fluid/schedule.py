@@ -53,21 +53,20 @@ def compression_within_tolerance(sums: wp.vec2, tolerance: float, stop_uncompres
 def decide_after_first_fluid_pass(
     params: wp.array[FluidParams],
     more: int,
-    stop_uncompressed: int,
     # in/out
     bins: wp.array[float],
     go_on: wp.array[wp.int32],
     loop_count: wp.array[wp.int32],
     iterations_total: wp.array[wp.int32],
 ):
-    """Whether density passes follow the first one, which always corrects, from the compression it measured.
+    """Whether sub-passes follow an XPBD iteration's first density pass, which always corrects.
 
-    The first pass of a substep (of each XPBD iteration with sub-passes) corrects whatever the
-    tolerance says: the mean counts the under-dense surface as 0, so a small or splashing fluid meets
-    any tolerance while some of its particles are compressed. Passes follow while its mean
-    compression, measured before its correction, is not within the tolerance (the rule of the later
-    passes' decisions: :func:`compression_within_tolerance`) and ``more`` passes are allowed. Counts the first pass, opens the loop's count, and
-    reads and clears the pass's compression sums. One block of ``COMPRESSION_BINS`` threads.
+    The first pass corrects whatever the tolerance says: the mean counts the under-dense surface as 0,
+    so a small or splashing fluid meets any tolerance while some of its particles are compressed.
+    Passes follow while its mean compression, measured before its correction, is not within the
+    tolerance (the rule of the later passes' decisions: :func:`compression_within_tolerance`) and
+    ``more`` passes are allowed. Counts the first pass, opens the loop's count, and reads and clears the
+    pass's compression sums. One block of ``COMPRESSION_BINS`` threads.
     """
     _, lane = wp.tid()
     sums = take_compression(bins)
@@ -75,7 +74,7 @@ def decide_after_first_fluid_pass(
         return
     iterations_total[0] = iterations_total[0] + 1
     loop_count[0] = 0
-    if more > 0 and not compression_within_tolerance(sums, params[0].density_tolerance, stop_uncompressed):
+    if more > 0 and not compression_within_tolerance(sums, params[0].density_tolerance, 1):
         go_on[0] = 1
     else:
         go_on[0] = 0
@@ -120,8 +119,21 @@ def decide_fluid_subiteration(
 
 
 @wp.kernel
+def open_fluid_substep_passes(
+    passes: int,
+    # in/out
+    active: wp.array[wp.int32],
+    iterations_total: wp.array[wp.int32],
+):
+    """Open a substep's density passes on the XPBD iterations: its first ``passes`` correct whatever they measure."""
+    active[0] = 1
+    iterations_total[0] = iterations_total[0] + passes
+
+
+@wp.kernel
 def decide_fluid_density_converged(
     params: wp.array[FluidParams],
+    passes: int,
     # in/out
     bins: wp.array[float],
     active: wp.array[wp.int32],
@@ -129,8 +141,10 @@ def decide_fluid_density_converged(
 ):
     """Skip this and the substep's remaining density passes once the mean compression is within the tolerance.
 
-    Not launched for the substep's first pass (see :func:`decide_after_first_fluid_pass`). Reads and clears the compression sums of this pass's evaluation; counts the passes that go on
-    to correct. One block of ``COMPRESSION_BINS`` threads, as :func:`decide_fluid_subiteration`.
+    Launched before an odd pass from the third on (see :class:`IterationTolerance`): the decision holds for
+    ``passes`` passes, this one and the next (one where this is the last), so a substep stops only after
+    an even count. Reads and clears the compression sums of this pass's evaluation; counts the passes
+    that go on to correct. One block of ``COMPRESSION_BINS`` threads, as :func:`decide_fluid_subiteration`.
     """
     _, lane = wp.tid()
     if active[0] == 0:
@@ -141,23 +155,11 @@ def decide_fluid_density_converged(
     if compression_within_tolerance(sums, params[0].density_tolerance, 0):
         active[0] = 0
         return
-    iterations_total[0] = iterations_total[0] + 1
+    iterations_total[0] = iterations_total[0] + passes
 
 
 # ---------------------------------------------------------------------------------------------------------------------
 # the schedules, one per mode: each owns its device flags and launches its decisions
-
-
-def launch_decide_after_first_pass(fluid, go_on: wp.array, loop_count: wp.array, more: int, stop_uncompressed: bool):
-    """:func:`decide_after_first_fluid_pass` on ``fluid``'s compression bins."""
-    wp.launch_tiled(
-        decide_after_first_fluid_pass,
-        dim=1,
-        block_dim=COMPRESSION_BINS,
-        inputs=[fluid.params, more, int(stop_uncompressed)],
-        outputs=[fluid.compression_bins, go_on, loop_count, fluid.subiterations_total],
-        device=fluid.device,
-    )
 
 
 class FixedPasses:
@@ -181,7 +183,15 @@ class FixedPasses:
         """The flag this iteration's passes run under (``first``: the substep's first iteration)."""
         return self.fluid.always_active
 
-    def decide(self, first: bool, active: wp.array) -> None:
+    def surely_corrects(self, iteration: int) -> bool:
+        """Whether the pass of XPBD iteration ``iteration`` (from 1) corrects whatever a decision says."""
+        return True
+
+    def decides(self) -> bool:
+        """Whether this iteration's density pass measures the compression for a decision."""
+        return False
+
+    def decide(self, first: bool, active: wp.array, iterations: int) -> None:
         """Launch the decision on the iteration's density pass (none: every pass corrects)."""
 
     def run(self, first: bool, active: wp.array, particle_q, particle_deltas, apply, iterations: int) -> None:
@@ -190,12 +200,12 @@ class FixedPasses:
         if not f.evaluated_ahead:
             f.evaluate_constraint(
                 active,
-                track_compression=self.tolerance,
+                track_compression=self.decides(),
                 last=f.iteration == iterations,
                 rate_pass=RATE_READ if first else RATE_KEPT,
             )
         f.evaluated_ahead = False
-        self.decide(first, active)
+        self.decide(first, active, iterations)
         # (a pass that may be skipped writes no applied positions)
         predict = apply is not None and active is f.always_active
         # (a schedule that decides on the device does not know the last correction: a pass after the step stores)
@@ -207,7 +217,7 @@ class FixedPasses:
         if predict:
             f.swap_slot_buffers()
             f.slot_content = SlotContent.APPLIED_WITH_VELOCITIES if apply[3] else SlotContent.APPLIED
-            if not self.tolerance and f.iteration < iterations and f.side_stream is not None:
+            if f.iteration < iterations and self.surely_corrects(f.iteration + 1) and f.side_stream is not None:
                 # the next iteration's density pass needs only these positions: it runs beside
                 # upstream's application of the deltas and its next contacts
                 with f.beside():
@@ -216,11 +226,14 @@ class FixedPasses:
 
 
 class IterationTolerance(FixedPasses):
-    """One density pass per XPBD iteration; after the substep's first, they stop once the fluid meets the tolerance.
+    """One density pass per XPBD iteration; they stop after an even count once the fluid meets the tolerance.
 
-    ``fluid_density_tolerance`` > 0 with ``fluid_max_iterations`` 1: the substep's first pass always
-    corrects and decides whether the later ones run; each later one measures the mean compression and
-    skips itself and the rest of the substep's passes once it is within the tolerance.
+    ``fluid_density_tolerance`` > 0 with ``fluid_max_iterations`` 1: the substep's first two passes always
+    correct; each odd pass from the third on measures the mean compression and skips itself and the rest
+    of the substep's passes once it is within the tolerance. A substep stops only after an even count
+    because an odd count at the full step keeps a negative share of the shortest waves, and still water
+    hums (docs/validation.rst, "Odd pass counts"): the one odd count it may run, all of its
+    ``iterations``, ends with the closing pass (:attr:`~.solver_fluid.FluidSolver.closing_iteration`).
     """
 
     tolerance = True
@@ -230,25 +243,36 @@ class IterationTolerance(FixedPasses):
         with wp.ScopedDevice(fluid.device):
             # cleared once a substep's density has converged
             self.substep_active = wp.ones(1, dtype=wp.int32)
-            self.loop_count = wp.zeros(1, dtype=wp.int32)
+
+    def surely_corrects(self, iteration: int) -> bool:
+        return iteration <= 2
 
     def active(self, first: bool) -> wp.array:
-        return self.fluid.always_active if first else self.substep_active
+        f = self.fluid
+        return f.always_active if self.surely_corrects(f.iteration) else self.substep_active
 
-    def decide(self, first: bool, active: wp.array) -> None:
+    def decides(self) -> bool:
+        return self.fluid.iteration >= 3 and self.fluid.iteration % 2 == 1
+
+    def decide(self, first: bool, active: wp.array, iterations: int) -> None:
         f = self.fluid
         if first:
-            # corrects whatever it measured; decides whether the later iterations do
-            launch_decide_after_first_pass(f, self.substep_active, self.loop_count, 1, stop_uncompressed=False)
-            return
-        wp.launch_tiled(
-            decide_fluid_density_converged,
-            dim=1,
-            block_dim=COMPRESSION_BINS,
-            inputs=[f.params],
-            outputs=[f.compression_bins, active, f.subiterations_total],
-            device=f.device,
-        )
+            wp.launch(
+                open_fluid_substep_passes,
+                dim=1,
+                inputs=[min(2, iterations)],
+                outputs=[self.substep_active, f.subiterations_total],
+                device=f.device,
+            )
+        elif self.decides():
+            wp.launch_tiled(
+                decide_fluid_density_converged,
+                dim=1,
+                block_dim=COMPRESSION_BINS,
+                inputs=[f.params, min(2, iterations - f.iteration + 1)],
+                outputs=[f.compression_bins, active, f.subiterations_total],
+                device=f.device,
+            )
 
 
 class SubPasses:
@@ -284,7 +308,14 @@ class SubPasses:
             last=self._last_iteration,
             rate_pass=RATE_READ if first else RATE_KEPT,
         )
-        launch_decide_after_first_pass(f, self.loop_active, self.loop_count, more, stop_uncompressed=True)
+        wp.launch_tiled(
+            decide_after_first_fluid_pass,
+            dim=1,
+            block_dim=COMPRESSION_BINS,
+            inputs=[f.params, more],
+            outputs=[f.compression_bins, self.loop_active, self.loop_count, f.subiterations_total],
+            device=f.device,
+        )
         f.correct(particle_deltas, f.always_active, advance=True)
         f.swap_slot_buffers()
         if f.device.is_capturing or f.device.is_cpu:

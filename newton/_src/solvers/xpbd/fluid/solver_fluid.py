@@ -132,18 +132,23 @@ class FluidSolver:
         self.lattice_density = lattice_density(d, h, self.mean_mass, kernel)
         # sum |grad C|^2 of a lattice particle at rest, grad C = m / rho0 grad W
         self.rest_grad_sq = rest_gradient_sq(d, h, self.mean_mass / self.lattice_density, kernel)
-        # the density passes a substep may run: one per iteration, or with a tolerance any count from
-        # one (the XPBD iterations stop) or ``iterations`` (sub-passes) up to the most allowed
+        # the density passes a substep may run: one per iteration, or with a tolerance an even count from
+        # two up to ``iterations`` and ``iterations`` itself (the XPBD iterations stop: schedule.IterationTolerance),
+        # or any count from ``iterations`` up to the most allowed (sub-passes)
         if config.fluid_max_iterations > 1:
             fewest, most = iterations, iterations * config.fluid_max_iterations
         elif config.fluid_density_tolerance > 0.0:
-            fewest, most = 1, iterations
+            fewest, most = min(2, iterations), iterations
         else:
             fewest, most = iterations, iterations
+        # whether every odd count a substep may run ends with a pass known on the host (the last iteration's)
+        closes = config.fluid_max_iterations == 1
         #: the relaxation in use while ``fluid_relaxation`` is None (see :func:`stable_relaxation`)
-        self.default_relaxation = stable_relaxation(d, h, fewest, most, kernel, config.fluid_compression_damping)
-        #: the XPBD iteration whose pass takes the closing step: the last of a fixed odd count, else none (0)
-        self.closing_iteration = iterations if fewest == most and iterations % 2 == 1 else 0
+        self.default_relaxation = stable_relaxation(
+            d, h, fewest, most, kernel, config.fluid_compression_damping, closes
+        )
+        #: the XPBD iteration whose pass takes the closing step: the last of an odd count, else none (0)
+        self.closing_iteration = iterations if closes and iterations % 2 == 1 else 0
 
         if config.fluid_max_neighbors > 0:
             capacity, capped = config.fluid_max_neighbors, True
@@ -462,7 +467,7 @@ class FluidSolver:
 
         How many passes an iteration runs, and who decides, is :attr:`schedule`'s:
         :class:`~.schedule.FixedPasses` (one correcting pass), :class:`~.schedule.IterationTolerance`
-        (one pass, skipped once the substep met ``fluid_density_tolerance``) or
+        (one pass, skipped once the substep met ``fluid_density_tolerance`` after an even count) or
         :class:`~.schedule.SubPasses` (up to ``fluid_max_iterations`` passes, decided on the device). With
         ``fluid_warm_start``, the substep's first iteration first moves the fluid by the multipliers
         carried from the last one, and with fixed counts the correction of iteration ``iterations`` (the
@@ -472,9 +477,10 @@ class FluidSolver:
         self._join()
         m, n = self.model, self.fluid_count
         # the substep's first iteration starts from the positions the build gathered; its first density
-        # pass always corrects (see decide_after_first_fluid_pass), and with the tolerance on the XPBD
-        # iterations a converged substep skips the rest of its passes
+        # pass always corrects, and with the tolerance on the XPBD iterations a converged substep skips the
+        # rest of its passes
         first = self.slot_content is SlotContent.BUILT
+        self.iteration += 1
         active = self.schedule.active(first)
         if self.slot_content is SlotContent.STALE:
             wp.launch(
@@ -483,7 +489,6 @@ class FluidSolver:
                 inputs=[self.slots, active, particle_q, m.particle_mass],
                 device=self.device,
             )
-        self.iteration += 1
         if first and self.warm_start_on():
             self._warm_start(particle_deltas, active)
         # after this iteration's correction, the slots' positions are out of date (unless it writes the applied ones)
