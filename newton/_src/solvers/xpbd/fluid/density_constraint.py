@@ -309,12 +309,12 @@ def density_passes(kernel: str, damped: bool = False) -> DensityPasses:
 
     def pair_weight(r2: float, d: float, p: FluidParams):
         if wp.static(one):
-            return one_kernel(d * p.inv_h, p)
+            return one_kernel(d / p.h, p)
         return poly6(r2, p)
 
     def pair_slope(d: float, p: FluidParams):
         if wp.static(one):
-            return one_kernel_slope(d * p.inv_h, p)
+            return one_kernel_slope(d / p.h, p)
         return spiky_slope(d, p)
 
     def self_weight(p: FluidParams):
@@ -358,7 +358,7 @@ def density_passes(kernel: str, damped: bool = False) -> DensityPasses:
     def density_slope(dist: float, d: float, p: FluidParams):
         """``dW/d|r|`` of the density's own kernel (poly6's is not the spiky slope the correction moves along)."""
         if wp.static(one):
-            return one_kernel_slope(d * p.inv_h, p)
+            return one_kernel_slope(d / p.h, p)
         return poly6_slope(dist, p)
 
     density_slope = wp.func(named_variant(density_slope, suffix))

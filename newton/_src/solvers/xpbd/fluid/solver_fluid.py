@@ -330,7 +330,6 @@ class FluidSolver:
         p = FluidParams()
         p.h = h
         p.h2 = h * h
-        p.inv_h = 1.0 / h
         p.poly6 = 315.0 / (64.0 * math.pi * h**9)
         p.spiky_grad = -45.0 / (math.pi * h**6)
         p.one_kernel_scale = one_kernel_scale(d, h)

@@ -49,7 +49,6 @@ class FluidParams:
 
     h: float  # smoothing length [m]
     h2: float
-    inv_h: float  # 1 / h [1/m]: the one kernel's q = 1 - |r|/h takes a product, not a division, per pair
     poly6: float  # 315 / (64 pi h^9)
     spiky_grad: float  # -45 / (pi h^6)
     one_kernel_scale: float  # W(0) of the one kernel c (1 - r/h)^2.5, normalised on the rest lattice [1/m^3]
