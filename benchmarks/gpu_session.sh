@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/archive/performance_notebook.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|coarse-damping|damping-interval|damping-interval-box|damping-interval-wave|damping-interval-pool|pool-settle|pool-pump|pool-one-kernel|box-one-kernel|box-starts|compression-damping|compression-damping-cost|one-kernel-inverse-h|odd-count-step|odd-count-pool|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|exact-i2|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|coarse-damping|damping-interval|damping-interval-box|damping-interval-wave|damping-interval-pool|pool-settle|pool-pump|pool-one-kernel|box-one-kernel|box-starts|compression-damping|compression-damping-cost|one-kernel-inverse-h|tolerance-even-stops|odd-count-step|odd-count-pool|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|exact-i2|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
 # tests and usd need usd-core (pxr) beside newton and warp; the rest runs without it
 set -u
 out=${1:?output folder}; shift
@@ -476,24 +476,36 @@ for what in "$@"; do
       (cd "$out" && tar czf "compression_damping_cost_${DAMPING_COST_SIZES:-all}_${gpu}.tgz" \
         dam_break_*_compression_damping_*_${gpu}.json && rm dam_break_*_compression_damping_*_${gpu}.json) ;;
     one-kernel-inverse-h)
-      # the one kernel's q = 1 - |r|/h from a product with 1/h (docs/performance.rst): the 100k and 1M dam breaks with
-      # "one_kernel", alternated with the division per pair it replaced (docs/archive/patches/one_kernel_inverse_h.patch
-      # taken off), alone and with the compression damping 0.4; "poly6", which it leaves as it was, for the ratio.
-      # The records go in one archive. INVERSE_H_SIZES="100k" (or "1m") runs one size
+      # the one kernel's q = 1 - |r|/h from a product with 1/h instead of a division per pair
+      # (docs/archive/patches/one_kernel_inverse_h.patch put on; docs/archive/performance_notebook.md, "The one kernel's
+      # division by h"): the 100k and 1M dam breaks with "one_kernel", alternated with main's division, alone and with
+      # the compression damping 0.4; "poly6", which it leaves as it was, for the ratio. The records go in one archive.
+      # INVERSE_H_SIZES="100k" (or "1m") runs one size
       for size in ${INVERSE_H_SIZES:-100k 1m}; do
         sizeflags=""
         [ $size = 1m ] && sizeflags="--particles 1000000 --warmup-frames 20 --frames 10"
-        for run in "poly6 poly6" "one_kernel one_kernel" "one_kernel_division one_kernel" \
-          "one_kernel_0.4 one_kernel 0.4" "one_kernel_0.4_division one_kernel 0.4" "one_kernel_again one_kernel"; do
+        for run in "poly6 poly6" "one_kernel_inverse_h one_kernel" "one_kernel one_kernel" \
+          "one_kernel_0.4_inverse_h one_kernel 0.4" "one_kernel_0.4 one_kernel 0.4" "one_kernel_inverse_h_again one_kernel"; do
           set -- $run
-          case $1 in *division) git apply -R docs/archive/patches/one_kernel_inverse_h.patch ;; esac
+          case $1 in *inverse_h*) git apply docs/archive/patches/one_kernel_inverse_h.patch ;; esac
           python3 -m benchmarks dam_break --density-kernel $2 ${3:+--compression-damping $3} $sizeflags --trials 2 \
-            --json "$out/dam_break_${size}_inverse_h_${1}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
-          case $1 in *division) git apply docs/archive/patches/one_kernel_inverse_h.patch ;; esac
+            --json "$out/dam_break_${size}_${1}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+          case $1 in *inverse_h*) git apply -R docs/archive/patches/one_kernel_inverse_h.patch ;; esac
         done
       done
-      (cd "$out" && tar czf "one_kernel_inverse_h_${INVERSE_H_SIZES:-all}_${gpu}.tgz" dam_break_*_inverse_h_*_${gpu}.json \
-        && rm dam_break_*_inverse_h_*_${gpu}.json) ;;
+      (cd "$out" && files=$(ls dam_break_*_{poly6,one_kernel*}_${gpu}.json) \
+        && tar czf "one_kernel_inverse_h_${INVERSE_H_SIZES:-all}_${gpu}.tgz" $files && rm $files) ;;
+    tolerance-even-stops)
+      # a tolerance on the XPBD iterations that stops only after an even count (docs/validation.rst, "A tolerance on
+      # the XPBD iterations"): the 100k pool with it at 0.005, before it (docs/archive/patches/tolerance_even_stops.patch
+      # taken off: a count may stop after one pass, every pass at 0.48), and at the defaults, one session
+      for v in density_tolerance_0.005_even_stops density_tolerance_0.005_before_even_stops defaults; do
+        flags="--density-tolerance 0.005"; [ $v = defaults ] && flags=""
+        case $v in *before*) git apply -R docs/archive/patches/tolerance_even_stops.patch ;; esac
+        python3 -m benchmarks rest_column --device cuda:0 --n 50 --layers 40 $flags --settle 2 7 \
+          --json "$out/rest_column_50x50x40_${v}_settle_2_7_${gpu}.json" 2>&1 | grep -A3 '^device'
+        case $v in *before*) git apply docs/archive/patches/tolerance_even_stops.patch ;; esac
+      done ;;
     odd-count-step|odd-count-pool)
       # odd fixed pass counts, whose last pass takes half the default step (docs/validation.rst, "Odd pass counts"),
       # against every pass at the step they took before (the linear bound at -1/3, given as fluid_relaxation, so no
