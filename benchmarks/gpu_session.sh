@@ -46,6 +46,26 @@ corrected_still_columns() {
       2>&1 | grep -A1 '^device' | tail -1
   done
 }
+# the 100k and 1M dam breaks (the sizes in $1) for each run ("tag kernel [damping]") of the rest of the arguments,
+# alternated; runs whose tag matches the pattern $3 have the patch $4 put on ($5 = on) or taken off ($5 = off) for
+# them. Records dam_break_SIZE_$2TAG_GPU.json
+dam_break_patch_runs() {
+  local sizes=$1 prefix=$2 match=$3 patch=$4 direction=$5 size sizeflags run
+  shift 5
+  local there="" back="-R"
+  [ "$direction" = off ] && there="-R" && back=""
+  for size in $sizes; do
+    sizeflags=""
+    [ "$size" = 1m ] && sizeflags="--particles 1000000 --warmup-frames 20 --frames 10"
+    for run in "$@"; do
+      set -- $run
+      case $1 in $match) git apply $there "$patch" ;; esac
+      python3 -m benchmarks dam_break --density-kernel "$2" ${3:+--compression-damping $3} $sizeflags --trials 2 \
+        --json "$out/dam_break_${size}_${prefix}${1}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+      case $1 in $match) git apply $back "$patch" ;; esac
+    done
+  done
+}
 for what in "$@"; do
   case $what in
     bench)
@@ -461,18 +481,10 @@ for what in "$@"; do
       # (docs/archive/patches/compression_damping_fused_read.patch taken off); on as it is (the rate in the density's
       # own loop, the moves gathered in slot order by the sort). A call brings few files back: the records go in one
       # archive. DAMPING_COST_SIZES="100k" (or "1m") runs one size (a cold machine compiles for minutes)
-      for size in ${DAMPING_COST_SIZES:-100k 1m}; do
-        sizeflags=""
-        [ $size = 1m ] && sizeflags="--particles 1000000 --warmup-frames 20 --frames 10"
-        for run in "one_kernel one_kernel" "one_kernel_0.4_two_loops one_kernel 0.4" "one_kernel_0.4 one_kernel 0.4" \
-          "poly6 poly6" "poly6_0.4_two_loops poly6 0.4" "poly6_0.4 poly6 0.4"; do
-          set -- $run
-          case $1 in *two_loops) git apply -R docs/archive/patches/compression_damping_fused_read.patch ;; esac
-          python3 -m benchmarks dam_break --density-kernel $2 ${3:+--compression-damping $3} $sizeflags --trials 2 \
-            --json "$out/dam_break_${size}_compression_damping_${1}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
-          case $1 in *two_loops) git apply docs/archive/patches/compression_damping_fused_read.patch ;; esac
-        done
-      done
+      dam_break_patch_runs "${DAMPING_COST_SIZES:-100k 1m}" compression_damping_ '*two_loops' \
+        docs/archive/patches/compression_damping_fused_read.patch off "one_kernel one_kernel" \
+        "one_kernel_0.4_two_loops one_kernel 0.4" "one_kernel_0.4 one_kernel 0.4" "poly6 poly6" \
+        "poly6_0.4_two_loops poly6 0.4" "poly6_0.4 poly6 0.4"
       (cd "$out" && tar czf "compression_damping_cost_${DAMPING_COST_SIZES:-all}_${gpu}.tgz" \
         dam_break_*_compression_damping_*_${gpu}.json && rm dam_break_*_compression_damping_*_${gpu}.json) ;;
     one-kernel-inverse-h)
@@ -481,18 +493,9 @@ for what in "$@"; do
       # division by h"): the 100k and 1M dam breaks with "one_kernel", alternated with main's division, alone and with
       # the compression damping 0.4; "poly6", which it leaves as it was, for the ratio. The records go in one archive.
       # INVERSE_H_SIZES="100k" (or "1m") runs one size
-      for size in ${INVERSE_H_SIZES:-100k 1m}; do
-        sizeflags=""
-        [ $size = 1m ] && sizeflags="--particles 1000000 --warmup-frames 20 --frames 10"
-        for run in "poly6 poly6" "one_kernel_inverse_h one_kernel" "one_kernel one_kernel" \
-          "one_kernel_0.4_inverse_h one_kernel 0.4" "one_kernel_0.4 one_kernel 0.4" "one_kernel_inverse_h_again one_kernel"; do
-          set -- $run
-          case $1 in *inverse_h*) git apply docs/archive/patches/one_kernel_inverse_h.patch ;; esac
-          python3 -m benchmarks dam_break --density-kernel $2 ${3:+--compression-damping $3} $sizeflags --trials 2 \
-            --json "$out/dam_break_${size}_${1}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
-          case $1 in *inverse_h*) git apply -R docs/archive/patches/one_kernel_inverse_h.patch ;; esac
-        done
-      done
+      dam_break_patch_runs "${INVERSE_H_SIZES:-100k 1m}" "" '*inverse_h*' docs/archive/patches/one_kernel_inverse_h.patch \
+        on "poly6 poly6" "one_kernel_inverse_h one_kernel" "one_kernel one_kernel" "one_kernel_0.4_inverse_h one_kernel 0.4" \
+        "one_kernel_0.4 one_kernel 0.4" "one_kernel_inverse_h_again one_kernel"
       (cd "$out" && files=$(ls dam_break_*_{poly6,one_kernel*}_${gpu}.json) \
         && tar czf "one_kernel_inverse_h_${INVERSE_H_SIZES:-all}_${gpu}.tgz" $files && rm $files) ;;
     tolerance-even-stops)
