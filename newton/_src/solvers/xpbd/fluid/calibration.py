@@ -162,8 +162,8 @@ def stable_relaxation(
 
     ``JACOBI_STEP_MARGIN`` of :func:`stable_pass_bound` over :func:`jacobi_spectral_radius`: 0.72 at
     h = 1.8 d for any fixed count of passes and for a tolerance on the XPBD iterations (``"poly6"``; an odd
-    count's last pass takes half of it), 0.61 for sub-passes from two to eight. A disordered neighbourhood's spectral radius is close to the
-    lattice's (2.45 measured in a settled column against 2.43), within the margin.
+    count's last pass takes half of it), 0.61 for sub-passes from two to eight. A disordered neighbourhood's
+    spectral radius is close to the lattice's (2.45 measured in a settled column against 2.43), within the margin.
     """
     bound = stable_pass_bound(fewest, most, damping, closes)
     return min(1.0, JACOBI_STEP_MARGIN * bound / jacobi_spectral_radius(rest_distance, h, kernel=kernel))
