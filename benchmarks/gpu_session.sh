@@ -47,22 +47,22 @@ corrected_still_columns() {
   done
 }
 # the 100k and 1M dam breaks (the sizes in $1) for each run ("tag kernel [damping]") of the rest of the arguments,
-# alternated; runs whose tag matches the pattern $3 have the patch $4 put on ($5 = on) or taken off ($5 = off) for
-# them. Records dam_break_SIZE_$2TAG_GPU.json
+# alternated; runs whose tag matches the pattern $3 have the patch $4 put on ($5 = on: an archived variant, by
+# archived_patch) or taken off ($5 = off: main's own change) for them. Records dam_break_SIZE_$2TAG_GPU.json
 dam_break_patch_runs() {
   local sizes=$1 prefix=$2 match=$3 patch=$4 direction=$5 size sizeflags run
   shift 5
-  local there="" back="-R"
-  [ "$direction" = off ] && there="-R" && back=""
+  local there="git apply -R" back="git apply"
+  [ "$direction" = on ] && there="archived_patch on" && back="archived_patch off"
   for size in $sizes; do
     sizeflags=""
     [ "$size" = 1m ] && sizeflags="--particles 1000000 --warmup-frames 20 --frames 10"
     for run in "$@"; do
       set -- $run
-      case $1 in $match) git apply $there "$patch" ;; esac
+      case $1 in $match) $there "$patch" ;; esac
       python3 -m benchmarks dam_break --density-kernel "$2" ${3:+--compression-damping $3} $sizeflags --trials 2 \
         --json "$out/dam_break_${size}_${prefix}${1}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
-      case $1 in $match) git apply $back "$patch" ;; esac
+      case $1 in $match) $back "$patch" ;; esac
     done
   done
 }
