@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/archive/performance_notebook.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|coarse-damping|damping-interval|damping-interval-box|damping-interval-wave|damping-interval-pool|pool-settle|pool-pump|pool-one-kernel|box-one-kernel|box-starts|compression-damping|compression-damping-cost|one-kernel-inverse-h|tolerance-even-stops|odd-count-step|odd-count-pool|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|exact-i2|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|coarse-damping|damping-interval|damping-interval-box|damping-interval-wave|damping-interval-pool|pool-settle|pool-pump|pool-one-kernel|box-one-kernel|box-starts|compression-damping|compression-damping-cost|one-kernel-inverse-h|tolerance-even-stops|subpasses|subpasses-cost|odd-count-step|odd-count-pool|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|exact-i2|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
 # tests and usd need usd-core (pxr) beside newton and warp; the rest runs without it
 set -u
 out=${1:?output folder}; shift
@@ -52,12 +52,14 @@ corrected_still_columns() {
 dam_break_patch_runs() {
   local sizes=$1 prefix=$2 match=$3 patch=$4 direction=$5 size sizeflags run
   shift 5
+  # (the runs are kept apart: set -- below replaces the arguments, which the next size would read)
+  local runs=("$@")
   local there="git apply -R" back="git apply"
   [ "$direction" = on ] && there="archived_patch on" && back="archived_patch off"
   for size in $sizes; do
     sizeflags=""
     [ "$size" = 1m ] && sizeflags="--particles 1000000 --warmup-frames 20 --frames 10"
-    for run in "$@"; do
+    for run in "${runs[@]}"; do
       set -- $run
       case $1 in $match) $there "$patch" ;; esac
       python3 -m benchmarks dam_break --density-kernel "$2" ${3:+--compression-damping $3} $sizeflags --trials 2 \
@@ -509,6 +511,30 @@ for what in "$@"; do
           --json "$out/rest_column_50x50x40_${v}_settle_2_7_${gpu}.json" 2>&1 | grep -A3 '^device'
         case $v in *before*) git apply docs/archive/patches/tolerance_even_stops.patch ;; esac
       done ;;
+    subpasses)
+      # sub-passes that go on from the contacts' correction and stop after an even count (docs/validation.rst,
+      # "Sub-passes"), and before them (docs/archive/patches/subpasses_see_contacts.patch taken off), one session:
+      # the 100k pool in one XPBD iteration of two passes, the 99,200 Koshizuka & Oka column with a tolerance in
+      # one and two iterations of up to four, and the 100k dam break's frame with them
+      sa="python3 -W ignore -m benchmarks speed_accuracy --per-l 40 --depth 31 --sample-every 6 --substeps 8"
+      for v in after before; do
+        [ $v = before ] && git apply -R docs/archive/patches/subpasses_see_contacts.patch
+        python3 -m benchmarks rest_column --device cuda:0 --n 50 --layers 40 --iterations 1 --max-iterations 2 \
+          --settle 2 7 --json "$out/rest_column_50x50x40_iterations_1_max_iterations_2_${v}_settle_2_7_${gpu}.json" \
+          2>&1 | grep -A3 '^device'
+        for i in 1 2; do
+          $sa --iterations --tolerance-iterations $i --max-iterations 4 --tolerances 0.005 \
+            --json "$out/speed_accuracy_100k_subpasses_i${i}_tolerance_0.005_${v}_${gpu}.json" 2>&1 | grep -A1 '^mode'
+          python3 -m benchmarks dam_break --iterations $i --max-iterations 4 --density-tolerance 0.005 --trials 3 \
+            --json "$out/dam_break_100k_subpasses_i${i}_tolerance_0.005_${v}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+        done
+        [ $v = before ] && git apply docs/archive/patches/subpasses_see_contacts.patch
+      done ;;
+    subpasses-cost)
+      # the defaults' 100k and 1M dam breaks with the sub-passes' change on, taken off and put back (the correction
+      # kernel every schedule runs holds the sub-passes' branch; the defaults' physics is bitwise unchanged)
+      dam_break_patch_runs "100k 1m" subpasses_ '*before*' docs/archive/patches/subpasses_see_contacts.patch off \
+        "after poly6" "before poly6" "after2 poly6" ;;
     odd-count-step|odd-count-pool)
       # odd fixed pass counts, whose last pass takes half the default step (docs/validation.rst, "Odd pass counts"),
       # against every pass at the step they took before (the linear bound at -1/3, given as fluid_relaxation, so no

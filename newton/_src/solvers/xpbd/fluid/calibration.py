@@ -117,7 +117,7 @@ def jacobi_spectral_radius(rest_distance: float, h: float, samples: int = 24, ke
     return float(np.einsum("ij,ij->i", b, b).max() / np.einsum("ij,ij->", grad, grad))
 
 
-def stable_pass_bound(fewest: int, most: int, damping: float = 0.0, closes: bool = False) -> float:
+def stable_pass_bound(fewest: int, most: int, damping: float = 0.0) -> float:
     """Largest ``relaxation x eigenvalue`` for which any substep of ``fewest`` to ``most`` Jacobi passes is stable.
 
     After ``k`` passes a mode of eigenvalue ``mu`` keeps ``p = (1 - w mu)^k`` of its error, and the
@@ -129,15 +129,14 @@ def stable_pass_bound(fewest: int, most: int, damping: float = 0.0, closes: bool
     for ``(2 g - 1) / (3 + 2 g) < p < 1``: an even count is unchanged below ``g = 1/2``, an odd one needs
     ``w mu < 1 + ((1 - 2 g) / (3 + 2 g))^(1/k)``.
 
-    Where every odd count a substep may run ends with a known last pass (``closes``: a fixed count, or a
-    tolerance on the XPBD iterations, which stops only after an even count) the bound is the even one, 2,
-    whatever the parity: that pass runs at :data:`CLOSING_PASS_SHARE` of the step, so that ``p >= 0`` (an odd
-    count that keeps ``p < 0`` flips the error's sign every substep; the linear model calls it stable, but the
-    unilateral constraint does not pull back the under-dense half, and still water hums: docs/validation.rst,
-    "Odd pass counts"). Otherwise (sub-passes, whose count a tolerance ends anywhere) the bound is the least
-    over the counts the substep may run.
+    A fixed count (``fewest == most``) takes the even bound, 2, whatever its parity: an odd count's last pass
+    runs at :data:`CLOSING_PASS_SHARE` of the step, so that ``p >= 0`` (an odd count that keeps ``p < 0`` flips
+    the error's sign every substep; the linear model calls it stable, but the unilateral constraint does not
+    pull back the under-dense half, and still water hums: docs/validation.rst, "Odd pass counts"). A range of
+    counts whose odd ones have no closing pass takes the least bound over them. The solver's schedules stop
+    only after even counts or close an odd one (:mod:`.schedule`), so they all take the even bound.
     """
-    if closes or fewest == most:
+    if fewest == most:
         return 2.0
     odd = fewest if fewest % 2 else fewest + 1
     if odd > most:
@@ -150,22 +149,16 @@ def stable_pass_bound(fewest: int, most: int, damping: float = 0.0, closes: bool
 
 
 def stable_relaxation(
-    rest_distance: float,
-    h: float,
-    fewest: int = 2,
-    most: int = 2,
-    kernel: str = "poly6",
-    damping: float = 0.0,
-    closes: bool = False,
+    rest_distance: float, h: float, fewest: int = 2, most: int = 2, kernel: str = "poly6", damping: float = 0.0
 ) -> float:
     """Default ``fluid_relaxation``: a step that keeps every mode of the rest lattice stable, at most 1.
 
     ``JACOBI_STEP_MARGIN`` of :func:`stable_pass_bound` over :func:`jacobi_spectral_radius`: 0.72 at
-    h = 1.8 d for any fixed count of passes and for a tolerance on the XPBD iterations (``"poly6"``; an odd
-    count's last pass takes half of it), 0.61 for sub-passes from two to eight. A disordered neighbourhood's
-    spectral radius is close to the lattice's (2.45 measured in a settled column against 2.43), within the margin.
+    h = 1.8 d for any count of passes the solver runs (``"poly6"``; an odd count's last pass takes half of it),
+    0.48 for one to two passes of which an odd count has no closing pass. A disordered neighbourhood's spectral
+    radius is close to the lattice's (2.45 measured in a settled column against 2.43), within the margin.
     """
-    bound = stable_pass_bound(fewest, most, damping, closes)
+    bound = stable_pass_bound(fewest, most, damping)
     return min(1.0, JACOBI_STEP_MARGIN * bound / jacobi_spectral_radius(rest_distance, h, kernel=kernel))
 
 

@@ -54,7 +54,7 @@ MAX_WARM_START = 0.5
 
 # largest fluid_compression_damping: a substep's passes move a mode's error to p C* - (1 - p) g (C* - C0), which is
 # stable for p > (2 g - 1) / (3 + 2 g); an even pass count reaches p = 0, so g must stay below a half
-# (docs/formulation.rst, "Compression damping"; the stable step narrows for a count a tolerance decides,
+# (docs/formulation.rst, "Compression damping"; every schedule stops after an even count or closes an odd one,
 # calibration.stable_pass_bound)
 MAX_COMPRESSION_DAMPING = 0.4
 

@@ -200,8 +200,9 @@ class ParticleApply:
     deltas with its ``apply_particle_deltas`` (same formula: ``x = x_pred + delta``,
     ``v = (x - x_start) / dt``, ``v`` bounded to ``v_max`` and ``x`` moved back with it), in slot
     order, so the next iteration and the viscosity pass need not gather them. ``on`` = 2
-    (``APPLY_ADVANCE``): the slot's position moved by this pass's correction, for the next density
-    sub-pass (only ``xm`` is used). 0: nothing.
+    (``APPLY_ADVANCE``): for the next density sub-pass, the position the iteration's deltas so far give,
+    ``x_pred + delta``, with the contacts' and every other constraint's of the iteration as well as the
+    passes' (only ``x_pred`` and ``xm`` are used; no bound on the speed). 0: nothing.
     """
 
     on: int
@@ -580,7 +581,8 @@ def density_passes(kernel: str, damped: bool = False) -> DensityPasses:
                 apply.xm[i] = wp.vec4(x[0], x[1], x[2], xi4[3])
                 apply.v[i] = v
             elif apply.on == APPLY_ADVANCE:
-                apply.xm[i] = xi4
+                x = apply.x_pred[pi] + particle_deltas[pi]
+                apply.xm[i] = wp.vec4(x[0], x[1], x[2], xi4[3])
             return
         lr_i = lambda_rho[i]
         lam_i = lr_i[0]
@@ -619,7 +621,8 @@ def density_passes(kernel: str, damped: bool = False) -> DensityPasses:
             apply.xm[i] = wp.vec4(x[0], x[1], x[2], xi4[3])
             apply.v[i] = v
         elif apply.on == APPLY_ADVANCE:
-            apply.xm[i] = wp.vec4(xi4[0] + dx[0], xi4[1] + dx[1], xi4[2] + dx[2], xi4[3])
+            x = apply.x_pred[pi] + delta
+            apply.xm[i] = wp.vec4(x[0], x[1], x[2], xi4[3])
 
     def apply_fluid_warm_start(
         params: wp.array[FluidParams],

@@ -50,54 +50,48 @@ def compression_within_tolerance(sums: wp.vec2, tolerance: float, stop_uncompres
 
 
 @wp.kernel
-def decide_after_first_fluid_pass(
-    params: wp.array[FluidParams],
-    more: int,
-    # in/out
-    bins: wp.array[float],
-    go_on: wp.array[wp.int32],
+def open_fluid_subpasses(
+    forced: int,
+    pairs: int,
+    tail: int,
+    # out
+    loop_active: wp.array[wp.int32],
     loop_count: wp.array[wp.int32],
+    tail_active: wp.array[wp.int32],
     iterations_total: wp.array[wp.int32],
 ):
-    """Whether sub-passes follow an XPBD iteration's first density pass, which always corrects.
+    """Open an XPBD iteration's sub-passes (see :class:`SubPasses`).
 
-    The first pass corrects whatever the tolerance says: the mean counts the under-dense surface as 0,
-    so a small or splashing fluid meets any tolerance while some of its particles are compressed.
-    Passes follow while its mean compression, measured before its correction, is not within the
-    tolerance (the rule of the later passes' decisions: :func:`compression_within_tolerance`) and
-    ``more`` passes are allowed. Counts the first pass, opens the loop's count, and reads and clears the
-    pass's compression sums. One block of ``COMPRESSION_BINS`` threads.
+    Its first ``forced`` passes correct whatever they measure; up to ``pairs`` pairs decided on the device may
+    follow, and with ``tail`` a last, closing pass once every pair has corrected.
     """
-    _, lane = wp.tid()
-    sums = take_compression(bins)
-    if lane != 0:
-        return
-    iterations_total[0] = iterations_total[0] + 1
+    loop_active[0] = wp.where(pairs > 0, 1, 0)
     loop_count[0] = 0
-    if more > 0 and not compression_within_tolerance(sums, params[0].density_tolerance, 1):
-        go_on[0] = 1
-    else:
-        go_on[0] = 0
+    tail_active[0] = wp.where(pairs == 0, tail, 0)
+    iterations_total[0] = iterations_total[0] + forced
 
 
 @wp.kernel
-def decide_fluid_subiteration(
+def decide_fluid_pass_pair(
     params: wp.array[FluidParams],
-    max_iterations: int,
+    pairs: int,
+    tail: int,
     # in/out
     bins: wp.array[float],
     loop_active: wp.array[wp.int32],
     correct: wp.array[wp.int32],
     loop_count: wp.array[wp.int32],
+    tail_active: wp.array[wp.int32],
     iterations_total: wp.array[wp.int32],
 ):
-    """Decide whether this density pass (after the iteration's first) corrects and whether another one follows.
+    """Decide whether this pair of sub-passes corrects, from the compression its first pass measured.
 
-    It corrects unless the mean compression it measured is within the tolerance (or nothing is
-    compressed); the loop ends with that or after ``max_iterations`` corrections in the loop. Reads and clears
-    the pass's compression sums. Once the loop has ended (passes launched outside a graph), nothing
-    corrects. One block of ``COMPRESSION_BINS`` threads; the first writes the decision (every thread
-    reads the flags before the sums, so before it writes them).
+    The pair corrects unless the mean compression is within the tolerance (or nothing is compressed), so
+    an iteration stops only after an even count; the loop ends with that or after ``pairs`` pairs, and
+    after the last pair (with ``tail``) the closing pass is opened. Reads and clears the pass's compression
+    sums. Once the loop has ended (pairs launched outside a graph), nothing corrects. One block of
+    ``COMPRESSION_BINS`` threads; the first writes the decision (every thread reads the flags before the
+    sums, so before it writes them).
     """
     _, lane = wp.tid()
     if loop_active[0] == 0:
@@ -113,9 +107,10 @@ def decide_fluid_subiteration(
         return
     correct[0] = 1
     loop_count[0] = loop_count[0] + 1
-    iterations_total[0] = iterations_total[0] + 1
-    if loop_count[0] >= max_iterations:
+    iterations_total[0] = iterations_total[0] + 2
+    if loop_count[0] >= pairs:
         loop_active[0] = 0
+        tail_active[0] = tail
 
 
 @wp.kernel
@@ -134,6 +129,7 @@ def open_fluid_substep_passes(
 def decide_fluid_density_converged(
     params: wp.array[FluidParams],
     passes: int,
+    stop_uncompressed: int,
     # in/out
     bins: wp.array[float],
     active: wp.array[wp.int32],
@@ -143,8 +139,10 @@ def decide_fluid_density_converged(
 
     Launched before an odd pass from the third on (see :class:`IterationTolerance`): the decision holds for
     ``passes`` passes, this one and the next (one where this is the last), so a substep stops only after
-    an even count. Reads and clears the compression sums of this pass's evaluation; counts the passes
-    that go on to correct. One block of ``COMPRESSION_BINS`` threads, as :func:`decide_fluid_subiteration`.
+    an even count; and before the closing pass of :class:`SubPasses`. ``stop_uncompressed`` as in
+    :func:`compression_within_tolerance`. Reads and clears the compression sums of this pass's evaluation;
+    counts the passes that go on to correct. One block of ``COMPRESSION_BINS`` threads, as
+    :func:`decide_fluid_pass_pair`.
     """
     _, lane = wp.tid()
     if active[0] == 0:
@@ -152,7 +150,7 @@ def decide_fluid_density_converged(
     sums = take_compression(bins)
     if lane != 0:
         return
-    if compression_within_tolerance(sums, params[0].density_tolerance, 0):
+    if compression_within_tolerance(sums, params[0].density_tolerance, stop_uncompressed):
         active[0] = 0
         return
     iterations_total[0] = iterations_total[0] + passes
@@ -269,30 +267,40 @@ class IterationTolerance(FixedPasses):
                 decide_fluid_density_converged,
                 dim=1,
                 block_dim=COMPRESSION_BINS,
-                inputs=[f.params, min(2, iterations - f.iteration + 1)],
+                inputs=[f.params, min(2, iterations - f.iteration + 1), 0],
                 outputs=[f.compression_bins, active, f.subiterations_total],
                 device=f.device,
             )
 
 
 class SubPasses:
-    """Up to ``fluid_max_iterations`` density passes per XPBD iteration, stopping once the fluid meets the tolerance.
+    """Up to ``fluid_max_iterations`` density passes per XPBD iteration, stopping after an even count within the tolerance.
 
-    The iteration's first pass corrects and writes its moved positions into the other slot buffer,
-    where the loop's passes go on while the mean compression they measure is above
-    ``fluid_density_tolerance``. The count is decided on the device: inside a graph capture the loop is
-    a conditional while node; on a GPU outside one every allowed pass is launched and the passes after
-    the decision do nothing (no synchronisation); on the CPU the loop reads its flag and stops.
+    Each pass's correction writes into the other slot buffer where the iteration's deltas so far put the
+    particles, and the next pass goes on from there: the contacts' deltas too, which upstream solved once for
+    the iteration before its passes (a pass that did not see them corrected their push out of a wall a
+    second time, and still water hummed: docs/validation.rst, "Sub-passes"). An iteration's first two passes always correct; then pairs of passes follow while the mean
+    compression the first of a pair measures is above ``fluid_density_tolerance``, so an iteration stops
+    only after an even count (an odd count at the even count's step keeps a negative share of the shortest
+    waves, and still water hums: docs/validation.rst, "Odd pass counts"). With an odd
+    ``fluid_max_iterations`` a last pass, once every pair has corrected, closes with half the step. The
+    count is decided on the device: inside a graph capture the pairs are a conditional while node; on a
+    GPU outside one every allowed pair is launched and the pairs after the decision do nothing (no
+    synchronisation); on the CPU the loop reads its flag and stops.
     """
 
     tolerance = True
 
     def __init__(self, fluid):
         self.fluid = fluid
+        most = fluid.config.fluid_max_iterations
+        #: passes of an iteration that always correct, pairs decided after them, and whether a closing pass may end it
+        self.forced, self.pairs, self.tail = min(2, most), (most - 2) // 2, most % 2 == 1 and most > 2
         with wp.ScopedDevice(fluid.device):
             self.loop_active = wp.zeros(1, dtype=wp.int32)
             self.loop_count = wp.zeros(1, dtype=wp.int32)
             self.pass_corrects = wp.zeros(1, dtype=wp.int32)
+            self.tail_active = wp.zeros(1, dtype=wp.int32)
         self._last_iteration = False
 
     def active(self, first: bool) -> wp.array:
@@ -300,57 +308,74 @@ class SubPasses:
 
     def run(self, first: bool, active: wp.array, particle_q, particle_deltas, apply, iterations: int) -> None:
         f = self.fluid
-        more = f.config.fluid_max_iterations - 1
         self._last_iteration = f.iteration == iterations
-        f.evaluate_constraint(
-            f.always_active,
-            track_compression=True,
-            last=self._last_iteration,
-            rate_pass=RATE_READ if first else RATE_KEPT,
-        )
-        wp.launch_tiled(
-            decide_after_first_fluid_pass,
+        for k in range(self.forced):
+            f.evaluate_constraint(
+                f.always_active, last=self._last_iteration, rate_pass=RATE_READ if first and k == 0 else RATE_KEPT
+            )
+            f.correct(particle_deltas, f.always_active, particle_q, advance=True)
+            f.swap_slot_buffers()
+        wp.launch(
+            open_fluid_subpasses,
             dim=1,
-            block_dim=COMPRESSION_BINS,
-            inputs=[f.params, more],
-            outputs=[f.compression_bins, self.loop_active, self.loop_count, f.subiterations_total],
+            inputs=[self.forced, self.pairs, int(self.tail)],
+            outputs=[self.loop_active, self.loop_count, self.tail_active, f.subiterations_total],
             device=f.device,
         )
-        f.correct(particle_deltas, f.always_active, advance=True)
-        f.swap_slot_buffers()
-        if f.device.is_capturing or f.device.is_cpu:
-            # a conditional while node in a graph; on the CPU the flag is read where it lies
-            wp.capture_while(self.loop_active, self._pass_pair, particle_deltas=particle_deltas)
-        else:
-            # no graph: launch every allowed pass (reading the flag would synchronise); the ones
-            # after the decision do nothing
-            for _ in range(f.config.fluid_max_iterations // 2):
-                self._pass_pair(particle_deltas)
+        if self.pairs > 0:
+            if f.device.is_capturing or f.device.is_cpu:
+                # a conditional while node in a graph; on the CPU the flag is read where it lies
+                wp.capture_while(
+                    self.loop_active, self._pass_pair, particle_q=particle_q, particle_deltas=particle_deltas
+                )
+            else:
+                # no graph: launch every allowed pair (reading the flag would synchronise); the ones
+                # after the decision do nothing
+                for _ in range(self.pairs):
+                    self._pass_pair(particle_q, particle_deltas)
+        if self.tail:
+            f.evaluate_constraint(
+                self.tail_active, track_compression=True, last=self._last_iteration, rate_pass=RATE_KEPT
+            )
+            wp.launch_tiled(
+                decide_fluid_density_converged,
+                dim=1,
+                block_dim=COMPRESSION_BINS,
+                inputs=[f.params, 1, 1],
+                outputs=[f.compression_bins, self.tail_active, f.subiterations_total],
+                device=f.device,
+            )
+            # (nothing reads the slots' positions after an iteration's passes: the next gathers them again)
+            f.correct(particle_deltas, self.tail_active, particle_q, advance=True, closing=True)
 
-    def _pass_pair(self, particle_deltas: wp.array) -> None:
+    def _pass_pair(self, particle_q: wp.array, particle_deltas: wp.array) -> None:
         # each pass's correction writes the moved positions into the other buffer, which the next pass
-        # reads: two passes per trip of the loop bring them back (a second pass after the loop's
-        # decision to stop does nothing; the positions after the loop are gathered again when needed)
+        # reads: the pair brings them back (a pair after the loop's decision to stop does nothing; the
+        # positions after the loop are gathered again when needed)
         f = self.fluid
         start = f.current
-        for source in (start, 1 - start):
-            f.current = source
-            self._pass(particle_deltas)
-        f.current = start
-
-    def _pass(self, particle_deltas: wp.array) -> None:
-        f = self.fluid
-        # (the density pass measures the walls where the last pass left the particles)
+        # (the first pass measures the walls and the compression where the last pass left the particles)
         f.evaluate_constraint(self.loop_active, track_compression=True, last=self._last_iteration, rate_pass=RATE_KEPT)
         wp.launch_tiled(
-            decide_fluid_subiteration,
+            decide_fluid_pass_pair,
             dim=1,
             block_dim=COMPRESSION_BINS,
-            inputs=[f.params, f.config.fluid_max_iterations - 1],
-            outputs=[f.compression_bins, self.loop_active, self.pass_corrects, self.loop_count, f.subiterations_total],
+            inputs=[f.params, self.pairs, int(self.tail)],
+            outputs=[
+                f.compression_bins,
+                self.loop_active,
+                self.pass_corrects,
+                self.loop_count,
+                self.tail_active,
+                f.subiterations_total,
+            ],
             device=f.device,
         )
-        f.correct(particle_deltas, self.pass_corrects, advance=True)
+        f.correct(particle_deltas, self.pass_corrects, particle_q, advance=True)
+        f.current = 1 - start
+        f.evaluate_constraint(self.pass_corrects, last=self._last_iteration, rate_pass=RATE_KEPT)
+        f.correct(particle_deltas, self.pass_corrects, particle_q, advance=True)
+        f.current = start
 
 
 def density_schedule(fluid):

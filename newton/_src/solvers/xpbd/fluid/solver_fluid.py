@@ -132,23 +132,13 @@ class FluidSolver:
         self.lattice_density = lattice_density(d, h, self.mean_mass, kernel)
         # sum |grad C|^2 of a lattice particle at rest, grad C = m / rho0 grad W
         self.rest_grad_sq = rest_gradient_sq(d, h, self.mean_mass / self.lattice_density, kernel)
-        # the density passes a substep may run: one per iteration, or with a tolerance an even count from
-        # two up to ``iterations`` and ``iterations`` itself (the XPBD iterations stop: schedule.IterationTolerance),
-        # or any count from ``iterations`` up to the most allowed (sub-passes)
-        if config.fluid_max_iterations > 1:
-            fewest, most = iterations, iterations * config.fluid_max_iterations
-        elif config.fluid_density_tolerance > 0.0:
-            fewest, most = min(2, iterations), iterations
-        else:
-            fewest, most = iterations, iterations
-        # whether every odd count a substep may run ends with a pass known on the host (the last iteration's)
-        closes = config.fluid_max_iterations == 1
+        # every count of density passes a substep runs is even or ends with a pass at the closing step (an odd
+        # fixed count's last, all of an odd count of XPBD iterations under a tolerance, an iteration's last
+        # sub-pass: schedule.py), so every schedule takes the even count's bound (calibration.stable_pass_bound)
         #: the relaxation in use while ``fluid_relaxation`` is None (see :func:`stable_relaxation`)
-        self.default_relaxation = stable_relaxation(
-            d, h, fewest, most, kernel, config.fluid_compression_damping, closes
-        )
-        #: the XPBD iteration whose pass takes the closing step: the last of an odd count, else none (0)
-        self.closing_iteration = iterations if closes and iterations % 2 == 1 else 0
+        self.default_relaxation = stable_relaxation(d, h, kernel=kernel, damping=config.fluid_compression_damping)
+        #: the XPBD iteration whose pass takes the closing step: the last of an odd count of one pass each, else none (0)
+        self.closing_iteration = iterations if config.fluid_max_iterations == 1 and iterations % 2 == 1 else 0
 
         if config.fluid_max_neighbors > 0:
             capacity, capped = config.fluid_max_neighbors, True
@@ -535,11 +525,20 @@ class FluidSolver:
         store_warm: bool = False,
         closing: bool = False,
     ) -> None:
+        """The correction pass of the multipliers the last :meth:`evaluate_constraint` left (while ``active[0]`` is set).
+
+        ``x_pred``: the positions ``SolverXPBD`` adds this iteration's deltas to. With ``apply`` (see
+        :meth:`solve_density`) the pass also writes where ``SolverXPBD`` will put each particle; with
+        ``advance`` (a density sub-pass, :class:`~.schedule.SubPasses`) where the iteration's deltas so far put
+        it, ``x_pred + delta``, for the next sub-pass. ``store_warm`` keeps the multipliers for the next
+        substep's warm start; ``closing`` takes the closing step (an odd count's last pass).
+        """
         m = self.model
         applied = self._apply_off
         # the corrected positions go to the other position buffer (this pass reads the current one)
         if advance:
             applied = self._apply_advance[self.current]
+            applied.x_pred = x_pred
         elif x_pred is not None:
             applied = ParticleApply()
             applied.on = APPLY_AS_XPBD
