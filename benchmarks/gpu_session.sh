@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/archive/performance_notebook.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|coarse-damping|damping-interval|damping-interval-box|damping-interval-wave|damping-interval-pool|pool-settle|pool-pump|pool-one-kernel|box-one-kernel|box-starts|compression-damping|compression-damping-cost|one-kernel-inverse-h|tolerance-even-stops|subpasses|subpasses-cost|odd-count-step|odd-count-pool|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|exact-i2|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|coarse-damping|damping-interval|damping-interval-box|damping-interval-wave|damping-interval-pool|pool-settle|pool-pump|pool-one-kernel|box-one-kernel|box-starts|compression-damping|compression-damping-cost|one-kernel-inverse-h|tolerance-even-stops|subpasses|subpasses-cost|one-iteration-two-passes|odd-count-step|odd-count-pool|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|exact-i2|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
 # tests and usd need usd-core (pxr) beside newton and warp; the rest runs without it
 set -u
 out=${1:?output folder}; shift
@@ -535,6 +535,16 @@ for what in "$@"; do
       # kernel every schedule runs holds the sub-passes' branch; the defaults' physics is bitwise unchanged)
       dam_break_patch_runs "100k 1m" subpasses_ '*before*' docs/archive/patches/subpasses_see_contacts.patch off \
         "after poly6" "before poly6" "after2 poly6" ;;
+    one-iteration-two-passes)
+      # one XPBD iteration of two density passes (sub-passes) against the defaults' two iterations of one pass: the
+      # same passes, a contact solve and an application of the deltas fewer a substep (docs/performance.rst)
+      for run in "100k i2" "100k i1_m2" "100k i2_again" "100k i1_m2_again" "1m i2" "1m i1_m2"; do
+        set -- $run
+        flags=""; case $2 in i1_m2*) flags="--iterations 1 --max-iterations 2" ;; esac
+        [ $1 = 1m ] && flags="$flags --particles 1000000 --warmup-frames 20 --frames 10"
+        python3 -m benchmarks dam_break $flags --trials 2 --json "$out/dam_break_${1}_${2}_${gpu}.json" 2>&1 \
+          | grep -A1 '^device' | tail -1
+      done ;;
     odd-count-step|odd-count-pool)
       # odd fixed pass counts, whose last pass takes half the default step (docs/validation.rst, "Odd pass counts"),
       # against every pass at the step they took before (the linear bound at -1/3, given as fluid_relaxation, so no

@@ -97,14 +97,17 @@ def run_one(args, device, substeps: int, iterations: int, tolerance: float, pass
                     break
         stats = solver.fluid_diagnostics(states[0])
     s = rec.rows
-    mode = "fixed" if tolerance <= 0.0 else ("tolerance" if passes == 1 else "tolerance, sub-passes")
+    if tolerance <= 0.0:
+        mode = "fixed" if passes == 1 else "fixed, sub-passes"
+    else:
+        mode = "tolerance" if passes == 1 else "tolerance, sub-passes"
     return {
         "mode": mode,
         "substeps": substeps,
         **solver_record(solver),
         # the passes that corrected, over every substep of the run
         "density_passes_per_substep": (
-            stats["density_subiterations"] / (ran * substeps) if tolerance > 0.0 else iterations
+            stats["density_subiterations"] / (ran * substeps) if tolerance > 0.0 or passes > 1 else iterations
         ),
         "ms_per_frame": 1000.0 * elapsed / (ran - start),
         # [s] when the mean compression passed CRUSHED and the run stopped; None: it ran to the end
