@@ -330,8 +330,8 @@ _FLUID_DOC = """
                 Defaults to 0.
             fluid_density_tolerance: Mean compression (of max(rho/rho0 - 1, 0)) at which the density passes stop
                 [dimensionless], >= 0: with ``fluid_max_iterations`` 1 a substep's after its first two, at an even
-                count; with more, each XPBD iteration's after its first two, at an even count. 0 is off, and only a solver created with a
-                value > 0 can change it later. Defaults to 0.
+                count; with more, each XPBD iteration's after its first two, at an even count. 0 is off, and only
+                a solver created with a value > 0 can change it later. Defaults to 0.
             fluid_max_iterations: Density passes per XPBD iteration, in [1, 64]; above 1 they stop at
                 ``fluid_density_tolerance``. Defaults to 1.
             fluid_max_displacement: Longest travel of a fluid particle in one substep [rest distances], > 0 or

@@ -279,14 +279,15 @@ class SubPasses:
     Each pass's correction writes into the other slot buffer where the iteration's deltas so far put the
     particles, and the next pass goes on from there: the contacts' deltas too, which upstream solved once for
     the iteration before its passes (a pass that did not see them corrected their push out of a wall a
-    second time, and still water hummed: docs/validation.rst, "Sub-passes"). An iteration's first two passes always correct; then pairs of passes follow while the mean
-    compression the first of a pair measures is above ``fluid_density_tolerance``, so an iteration stops
-    only after an even count (an odd count at the even count's step keeps a negative share of the shortest
-    waves, and still water hums: docs/validation.rst, "Odd pass counts"). With an odd
-    ``fluid_max_iterations`` a last pass, once every pair has corrected, closes with half the step. The
-    count is decided on the device: inside a graph capture the pairs are a conditional while node; on a
-    GPU outside one every allowed pair is launched and the pairs after the decision do nothing (no
-    synchronisation); on the CPU the loop reads its flag and stops.
+    second time, and still water hummed: docs/validation.rst, "Sub-passes"). An iteration's first two passes
+    always correct; then pairs of passes follow while the mean compression the first of a pair measures is
+    above ``fluid_density_tolerance``, so an iteration stops only after an even count (an odd count at the
+    even count's step keeps a negative share of the shortest waves, and still water hums:
+    docs/validation.rst, "Odd pass counts"). With an odd ``fluid_max_iterations`` a last pass, once every
+    pair has corrected, closes with half the step. The count is decided on the device: inside a graph
+    capture the pairs are a conditional while node; on a GPU outside one every allowed pair is launched and
+    the pairs after the decision do nothing (no synchronisation); on the CPU the loop reads its flag and
+    stops.
     """
 
     tolerance = True
