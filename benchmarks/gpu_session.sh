@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/archive/performance_notebook.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|coarse-damping|damping-interval|damping-interval-box|damping-interval-wave|damping-interval-pool|pool-settle|pool-pump|pool-one-kernel|box-one-kernel|box-starts|compression-damping|compression-damping-cost|one-kernel-inverse-h|tolerance-even-stops|subpasses|subpasses-cost|one-iteration-two-passes|odd-count-step|odd-count-pool|worlds|ncu|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|exact-i2|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|coarse-damping|damping-interval|damping-interval-box|damping-interval-wave|damping-interval-pool|pool-settle|pool-pump|pool-one-kernel|box-one-kernel|box-starts|compression-damping|compression-damping-cost|one-kernel-inverse-h|tolerance-even-stops|subpasses|subpasses-cost|one-iteration-two-passes|odd-count-step|odd-count-pool|worlds|ncu|ncu-kernels|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|exact-i2|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
 # tests and usd need usd-core (pxr) beside newton and warp; the rest runs without it
 set -u
 out=${1:?output folder}; shift
@@ -574,6 +574,17 @@ for what in "$@"; do
         --launch-skip 40 --launch-count 4 --section SpeedOfLight --section Occupancy --section LaunchStats \
         --section MemoryWorkloadAnalysis python3 -m benchmarks dam_break --warmup-frames 2 --frames 1 --trials 1 \
         > "$out/ncu.txt" 2>&1; grep -E 'fluid|Duration|Throughput|Achieved Occupancy|Registers Per|L1/TEX Hit|L2 Hit' "$out/ncu.txt" | head -80 ;;
+    ncu-kernels)
+      # the density passes' kernels of each density kernel under Nsight Compute: duration, registers, occupancy, and
+      # where the time goes (docs/archive/performance_notebook.md, "The one kernel's density passes under Nsight")
+      for k in poly6 one_kernel; do
+        ncu --kernel-name regex:'compute_fluid_density|apply_fluid_density' --launch-skip 40 --launch-count 4 \
+          --section SpeedOfLight --section Occupancy --section LaunchStats --section ComputeWorkloadAnalysis \
+          --section WarpStateStats python3 -m benchmarks dam_break --density-kernel $k --warmup-frames 2 --frames 1 \
+          --trials 1 > "$out/ncu_$k.txt" 2>&1
+        grep -E '^  [a-z_]+.*\(|Duration|Registers Per|Achieved Occupancy|Theoretical Occupancy|Compute \(SM\) Throughput|Memory Throughput|Issue Slots Busy|Warp Cycles Per Issued|Executed Ipc A' \
+          "$out/ncu_$k.txt" | head -60
+      done ;;
     variants)
       for v in "--iterations 4" "--substeps 4 --iterations 4" "--cohesion 0" "--speed-clamp 0"; do
         echo "== $v"; python3 -m benchmarks dam_break $v --trials 3 --json "$out/dam_break_100k_${v//[ -]/_}.json" 2>&1 | grep -A1 "^device"
