@@ -100,6 +100,12 @@ def add_solver_arguments(
         default=None,
         help="the smoothing length over the scene's spacing (sets fluid_smoothing_length)",
     )
+    group.add_argument(
+        "--soft-contact-relaxation",
+        type=float,
+        default=None,
+        help="soft_contact_relaxation: upstream's relaxation of particle-shape contacts (its default 0.9)",
+    )
     for name, default in SOLVER_KEYWORDS.items():
         if name in _SCENE_KEYWORDS:
             continue
@@ -131,6 +137,8 @@ def solver_keywords(args, spacing: float, damping: bool = True, iterations: int 
     keywords = {"iterations": args.iterations if iterations is None else iterations, "fluid_rest_distance": spacing}
     if args.smoothing_ratio is not None:
         keywords["fluid_smoothing_length"] = args.smoothing_ratio * spacing
+    if getattr(args, "soft_contact_relaxation", None) is not None:
+        keywords["soft_contact_relaxation"] = args.soft_contact_relaxation
     for name in SOLVER_KEYWORDS:
         if name in _SCENE_KEYWORDS:
             continue
@@ -144,7 +152,11 @@ def solver_keywords(args, spacing: float, damping: bool = True, iterations: int 
 
 def solver_record(solver) -> dict:
     """The solver's settings for a JSON record: its iterations and every fluid keyword's value in use."""
-    return {"iterations": solver.iterations, **{name: getattr(solver, name) for name in SOLVER_KEYWORDS}}
+    return {
+        "iterations": solver.iterations,
+        "soft_contact_relaxation": solver.soft_contact_relaxation,
+        **{name: getattr(solver, name) for name in SOLVER_KEYWORDS},
+    }
 
 
 def contact_frames(model, args, spacing: float, device, damping: bool = True) -> tuple:
