@@ -137,7 +137,7 @@ def solver_keywords(args, spacing: float, damping: bool = True, iterations: int 
     keywords = {"iterations": args.iterations if iterations is None else iterations, "fluid_rest_distance": spacing}
     if args.smoothing_ratio is not None:
         keywords["fluid_smoothing_length"] = args.smoothing_ratio * spacing
-    if getattr(args, "soft_contact_relaxation", None) is not None:
+    if args.soft_contact_relaxation is not None:
         keywords["soft_contact_relaxation"] = args.soft_contact_relaxation
     for name in SOLVER_KEYWORDS:
         if name in _SCENE_KEYWORDS:

@@ -537,7 +537,8 @@ for what in "$@"; do
         "after poly6" "before poly6" "after2 poly6" ;;
     one-iteration-two-passes)
       # one XPBD iteration of two density passes (sub-passes) against the defaults' two iterations of one pass: the
-      # same passes, a contact solve and an application of the deltas fewer a substep (docs/performance.rst)
+      # same passes, a contact solve and an application of the deltas fewer a substep (docs/archive/
+      # performance_notebook.md, "One XPBD iteration of two density passes")
       for run in "100k i2" "100k i1_m2" "100k i2_again" "100k i1_m2_again" "1m i2" "1m i1_m2"; do
         set -- $run
         flags=""; case $2 in i1_m2*) flags="--iterations 1 --max-iterations 2" ;; esac
@@ -576,7 +577,7 @@ for what in "$@"; do
         > "$out/ncu.txt" 2>&1; grep -E 'fluid|Duration|Throughput|Achieved Occupancy|Registers Per|L1/TEX Hit|L2 Hit' "$out/ncu.txt" | head -80 ;;
     ncu-kernels)
       # the density passes' kernels of each density kernel under Nsight Compute: duration, registers, occupancy, and
-      # where the time goes (docs/archive/performance_notebook.md, "The one kernel's density passes under Nsight")
+      # where the time goes (docs/archive/performance_notebook.md, "The one kernel's cost is its neighbours")
       for k in poly6 one_kernel; do
         ncu --kernel-name regex:'compute_fluid_density|apply_fluid_density' --launch-skip 40 --launch-count 4 \
           --section SpeedOfLight --section Occupancy --section LaunchStats --section ComputeWorkloadAnalysis \

@@ -259,7 +259,7 @@ def test_subpasses_come_to_rest(test, device):
     # sub-passes in one XPBD iteration: each goes on from where the iteration's deltas so far put the
     # particles, the walls' contacts included, and an iteration stops only after an even count (or closes an
     # odd one). Reading its own moves alone, the second pass pushed the particles out of the walls a second
-    # time and the column hummed at 0.036 m/s (CPU, over 2-3 s; at rest 0.0028 for all three)
+    # time and the column hummed (CPU, over 2-3 s: 0.036 m/s with two passes, 0.061 with up to four; now 0.0028)
     for kwargs in (
         {"fluid_max_iterations": 2},
         {"fluid_max_iterations": 3},

@@ -274,7 +274,7 @@ class IterationTolerance(FixedPasses):
 
 
 class SubPasses:
-    """Up to ``fluid_max_iterations`` density passes per XPBD iteration, stopping after an even count within the tolerance.
+    """Up to ``fluid_max_iterations`` density passes per XPBD iteration, stopping after an even count within tolerance.
 
     Each pass's correction writes into the other slot buffer where the iteration's deltas so far put the
     particles, and the next pass goes on from there: the contacts' deltas too, which upstream solved once for
@@ -295,7 +295,8 @@ class SubPasses:
     def __init__(self, fluid):
         self.fluid = fluid
         most = fluid.config.fluid_max_iterations
-        #: passes of an iteration that always correct, pairs decided after them, and whether a closing pass may end it
+        #: passes of an iteration that always correct, pairs decided after them, and whether a closing pass may
+        #: end it
         self.forced, self.pairs, self.tail = min(2, most), (most - 2) // 2, most % 2 == 1 and most > 2
         with wp.ScopedDevice(fluid.device):
             self.loop_active = wp.zeros(1, dtype=wp.int32)

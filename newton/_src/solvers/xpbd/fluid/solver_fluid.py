@@ -137,7 +137,8 @@ class FluidSolver:
         # sub-pass: schedule.py), so every schedule takes the even count's bound (calibration.stable_pass_bound)
         #: the relaxation in use while ``fluid_relaxation`` is None (see :func:`stable_relaxation`)
         self.default_relaxation = stable_relaxation(d, h, kernel=kernel, damping=config.fluid_compression_damping)
-        #: the XPBD iteration whose pass takes the closing step: the last of an odd count of one pass each, else none (0)
+        #: the XPBD iteration whose pass takes the closing step: the last of an odd count of one pass each, else
+        #: none (0)
         self.closing_iteration = iterations if config.fluid_max_iterations == 1 and iterations % 2 == 1 else 0
 
         if config.fluid_max_neighbors > 0:
@@ -525,7 +526,7 @@ class FluidSolver:
         store_warm: bool = False,
         closing: bool = False,
     ) -> None:
-        """The correction pass of the multipliers the last :meth:`evaluate_constraint` left (while ``active[0]`` is set).
+        """The correction pass of the last :meth:`evaluate_constraint`'s multipliers (while ``active[0]`` is set).
 
         ``x_pred``: the positions ``SolverXPBD`` adds this iteration's deltas to. With ``apply`` (see
         :meth:`solve_density`) the pass also writes where ``SolverXPBD`` will put each particle; with
