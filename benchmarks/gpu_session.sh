@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/archive/performance_notebook.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|coarse-damping|damping-interval|damping-interval-box|damping-interval-wave|damping-interval-pool|pool-settle|pool-pump|pool-one-kernel|box-one-kernel|box-starts|compression-damping|compression-damping-cost|one-kernel-inverse-h|tolerance-even-stops|subpasses|subpasses-cost|constraint-moves-pool|constraint-moves-cost|constraint-moves-whole|one-iteration-two-passes|odd-count-step|odd-count-pool|worlds|ncu|ncu-kernels|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|exact-i2|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|coarse-damping|damping-interval|damping-interval-box|damping-interval-wave|damping-interval-pool|pool-settle|pool-pump|pool-one-kernel|box-one-kernel|box-starts|compression-damping|compression-damping-cost|one-kernel-inverse-h|tolerance-even-stops|subpasses|subpasses-cost|constraint-moves-pool|constraint-moves-cost|constraint-moves-whole|contact-moves-first-cost|contact-moves-first-pool|contact-moves-first-tests|one-iteration-two-passes|odd-count-step|odd-count-pool|worlds|ncu|ncu-kernels|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|exact-i2|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
 # tests and usd need usd-core (pxr) beside newton and warp; the rest runs without it
 set -u
 out=${1:?output folder}; shift
@@ -578,6 +578,33 @@ for what in "$@"; do
           "${off[@]}"
         fi
       fi ;;
+    contact-moves-first-cost|contact-moves-first-pool|contact-moves-first-tests)
+      # the substep's first density pass alone starting from the contacts' moves (docs/archive/patches/
+      # contact_moves_first_iteration.patch; docs/archive/validation_notebook.md, "The floor's pump"): the later
+      # passes still run beside upstream's contacts. -cost: the defaults' 100k and 1M dam breaks with it on, off and
+      # on again; -pool: the 100k pool over 2-5, 7-10 and 17-20 s with it; -tests: every fluid test's CUDA variant
+      patch=docs/archive/patches/contact_moves_first_iteration.patch
+      archived_patch on "$patch"
+      case $what in
+        contact-moves-first-cost)
+          for size in 100k 1m; do
+            sizeflags=""
+            [ $size = 1m ] && sizeflags="--particles 1000000 --warmup-frames 20 --frames 10"
+            for v in first before_first_session first2; do
+              [ $v = before_first_session ] && archived_patch off "$patch"
+              python3 -m benchmarks dam_break --density-kernel poly6 $sizeflags --trials 2 \
+                --json "$out/dam_break_${size}_contact_moves_${v}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
+              [ $v = before_first_session ] && archived_patch on "$patch"
+            done
+          done ;;
+        contact-moves-first-pool)
+          python3 -m benchmarks rest_column --device cuda:0 --n 50 --layers 40 --settle 2 7 17 \
+            --json "$out/rest_column_50x50x40_contact_moves_first_settle_2_7_17_${gpu}.json" 2>&1 | grep -A4 '^device' ;;
+        contact-moves-first-tests)
+          python3 -m pytest -q -k cuda newton/tests/test_solver_xpbd_fluid.py \
+            $(ls newton/tests/test_fluid_*.py | grep -v test_fluid_render_gl.py) 2>&1 | tail -25 ;;
+      esac
+      archived_patch off "$patch" ;;
     one-iteration-two-passes)
       # one XPBD iteration of two density passes (sub-passes) against the defaults' two iterations of one pass: the
       # same passes, a contact solve and an application of the deltas fewer a substep (docs/archive/
