@@ -11,18 +11,21 @@ gpu=$(nvidia-smi --query-gpu=name --format=csv,noheader | head -1 | grep -oiE '[
 gpu=${gpu:-gpu}
 # an archived patch on or off ($1 on|off, $2 its path). Patches written before a keyword of the solver apply to the
 # tree without it: the keywords' own patches (the newest first: fluid_compression_damping, fluid_density_kernel) are
-# then taken off until the patch applies, and put back after
+# then taken off until the patch applies, and put back after. A mode may set apply_options (git apply's --exclude,
+# which must come before the --include) to put on a part of a patch
 keywords="docs/archive/patches/compression_damping_keyword.patch docs/archive/patches/density_kernel_keyword.patch"
+apply_options=()
 archived_patch() {
+  local options=(${apply_options[@]+"${apply_options[@]}"} --include='newton/*')
   if [ "$1" = on ]; then
     : > /tmp/keywords_off
     for k in $keywords; do
-      git apply --check --include='newton/*' "$2" 2>/dev/null && break
+      git apply --check "${options[@]}" "$2" 2>/dev/null && break
       git apply -R "$k" && echo "$k" >> /tmp/keywords_off
     done
-    git apply --include='newton/*' "$2"
+    git apply "${options[@]}" "$2"
   else
-    git apply -R --include='newton/*' "$2"
+    git apply -R "${options[@]}" "$2"
     tac /tmp/keywords_off 2>/dev/null | while read -r k; do git apply "$k"; done
     rm -f /tmp/keywords_off
   fi
@@ -45,6 +48,11 @@ corrected_still_columns() {
       --coarse-correction 0.5 "$@" --json "$out/rest_column_${n}x${n}x${l}_one_kernel_coarse_correction${tag}_${gpu}.json" \
       2>&1 | grep -A1 '^device' | tail -1
   done
+}
+# every fluid test's CUDA variant (the image tests run under gltests: they need NVIDIA's GL)
+cuda_tests() {
+  python3 -m pytest -q -k cuda newton/tests/test_solver_xpbd_fluid.py \
+    $(ls newton/tests/test_fluid_*.py | grep -v test_fluid_render_gl.py) 2>&1 | tail -25
 }
 # the 100k and 1M dam breaks (the sizes in $1) for each run ("tag kernel [damping]") of the rest of the arguments,
 # alternated; runs whose tag matches the pattern $3 have the patch $4 put on ($5 = on: an archived variant, by
@@ -545,66 +553,49 @@ for what in "$@"; do
       # constraint-moves-whole: the whole patch ("whole": no pass ahead where the moves are read), its dam breaks as
       # constraint-moves-cost's, then its 100k pool over 2-5 and 7-10 s
       patch=docs/archive/patches/density_sees_constraint_moves.patch
-      on=(git apply --exclude='*/schedule.py' --include='newton/*' "$patch")
-      off=(git apply -R --exclude='*/schedule.py' --include='newton/*' "$patch")
-      tag=ahead before=before
-      if [ $what = constraint-moves-whole ]; then
-        on=(git apply --include='newton/*' "$patch")
-        off=(git apply -R --include='newton/*' "$patch")
-        tag=whole before=before_whole_session
-      fi
-      if [ $what = constraint-moves-pool ]; then
-        for v in ahead before; do
-          [ $v = ahead ] && "${on[@]}"
-          python3 -m benchmarks rest_column --device cuda:0 --n 50 --layers 40 --settle 2 7 17 \
-            --json "$out/rest_column_50x50x40_constraint_moves_${v}_settle_2_7_17_${gpu}.json" 2>&1 | grep -A4 '^device'
-          [ $v = ahead ] && "${off[@]}"
-        done
-      else
-        for size in 100k 1m; do
-          sizeflags=""
-          [ $size = 1m ] && sizeflags="--particles 1000000 --warmup-frames 20 --frames 10"
-          for v in $tag $before ${tag}2; do
-            [ $v != $before ] && "${on[@]}"
-            python3 -m benchmarks dam_break --density-kernel poly6 $sizeflags --trials 2 \
-              --json "$out/dam_break_${size}_constraint_moves_${v}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
-            [ $v != $before ] && "${off[@]}"
-          done
-        done
-        if [ $what = constraint-moves-whole ]; then
-          "${on[@]}"
+      apply_options=(--exclude='*/schedule.py')
+      case $what in
+        constraint-moves-pool)
+          for v in ahead before; do
+            [ $v = ahead ] && archived_patch on "$patch"
+            python3 -m benchmarks rest_column --device cuda:0 --n 50 --layers 40 --settle 2 7 17 \
+              --json "$out/rest_column_50x50x40_constraint_moves_${v}_settle_2_7_17_${gpu}.json" 2>&1 | grep -A4 '^device'
+            [ $v = ahead ] && archived_patch off "$patch"
+          done ;;
+        constraint-moves-cost)
+          dam_break_patch_runs "100k 1m" constraint_moves_ 'ahead*' "$patch" on "ahead poly6" "before poly6" \
+            "ahead2 poly6" ;;
+        constraint-moves-whole)
+          apply_options=()
+          dam_break_patch_runs "100k 1m" constraint_moves_ 'whole*' "$patch" on "whole poly6" \
+            "before_whole_session poly6" "whole2 poly6"
+          archived_patch on "$patch"
           python3 -m benchmarks rest_column --device cuda:0 --n 50 --layers 40 --settle 2 7 \
             --json "$out/rest_column_50x50x40_constraint_moves_whole_settle_2_7_${gpu}.json" 2>&1 | grep -A3 '^device'
-          "${off[@]}"
-        fi
-      fi ;;
+          archived_patch off "$patch" ;;
+      esac
+      apply_options=() ;;
     contact-moves-first-cost|contact-moves-first-pool|contact-moves-first-tests)
       # the substep's first density pass alone starting from the contacts' moves (docs/archive/patches/
       # contact_moves_first_iteration.patch; docs/archive/validation_notebook.md, "The floor's pump"): the later
       # passes still run beside upstream's contacts. -cost: the defaults' 100k and 1M dam breaks with it on, off and
       # on again; -pool: the 100k pool over 2-5, 7-10 and 17-20 s with it; -tests: every fluid test's CUDA variant
+      # with it
       patch=docs/archive/patches/contact_moves_first_iteration.patch
-      archived_patch on "$patch"
       case $what in
         contact-moves-first-cost)
-          for size in 100k 1m; do
-            sizeflags=""
-            [ $size = 1m ] && sizeflags="--particles 1000000 --warmup-frames 20 --frames 10"
-            for v in first before_first_session first2; do
-              [ $v = before_first_session ] && archived_patch off "$patch"
-              python3 -m benchmarks dam_break --density-kernel poly6 $sizeflags --trials 2 \
-                --json "$out/dam_break_${size}_contact_moves_${v}_${gpu}.json" 2>&1 | grep -A1 '^device' | tail -1
-              [ $v = before_first_session ] && archived_patch on "$patch"
-            done
-          done ;;
+          dam_break_patch_runs "100k 1m" contact_moves_ 'first*' "$patch" on "first poly6" \
+            "before_first_session poly6" "first2 poly6" ;;
         contact-moves-first-pool)
+          archived_patch on "$patch"
           python3 -m benchmarks rest_column --device cuda:0 --n 50 --layers 40 --settle 2 7 17 \
-            --json "$out/rest_column_50x50x40_contact_moves_first_settle_2_7_17_${gpu}.json" 2>&1 | grep -A4 '^device' ;;
+            --json "$out/rest_column_50x50x40_contact_moves_first_settle_2_7_17_${gpu}.json" 2>&1 | grep -A4 '^device'
+          archived_patch off "$patch" ;;
         contact-moves-first-tests)
-          python3 -m pytest -q -k cuda newton/tests/test_solver_xpbd_fluid.py \
-            $(ls newton/tests/test_fluid_*.py | grep -v test_fluid_render_gl.py) 2>&1 | tail -25 ;;
-      esac
-      archived_patch off "$patch" ;;
+          archived_patch on "$patch"
+          cuda_tests
+          archived_patch off "$patch" ;;
+      esac ;;
     one-iteration-two-passes)
       # one XPBD iteration of two density passes (sub-passes) against the defaults' two iterations of one pass: the
       # same passes, a contact solve and an application of the deltas fewer a substep (docs/archive/
@@ -858,8 +849,6 @@ for what in "$@"; do
       # (docs/archive/performance_notebook.md, "Surface mesh"); needs usd-core (pxr), else add --no-usd for the timing alone
       python3 -m benchmarks usd_surface --frames 30 --json "$out/usd_surface_100k_${gpu}.json" 2>&1 | grep -v '^Module' ;;
     tests)
-      # every fluid test's CUDA variant (the image tests run under gltests: they need NVIDIA's GL)
-      python3 -m pytest -q -k cuda newton/tests/test_solver_xpbd_fluid.py \
-        $(ls newton/tests/test_fluid_*.py | grep -v test_fluid_render_gl.py) 2>&1 | tail -25 ;;
+      cuda_tests ;;
   esac
 done

@@ -85,20 +85,26 @@ def energy(state) -> float:
     return float((0.5 * (v * v).sum(axis=1) + GRAVITY * q[:, 2]).mean())
 
 
-def velocity_scales(q: np.ndarray, v: np.ndarray, cell: float) -> tuple[float, float, float]:
-    """RMS speeds [m/s] of the mean motion, the ``cell``-sized cells' motion less it, and each particle's against its cell."""
-    mean = v.mean(axis=0)
+def cell_velocity(q: np.ndarray, v: np.ndarray, cell: float) -> np.ndarray:
+    """Each particle's ``cell``-sized cell's mean velocity [m/s] (one row per particle)."""
     keys = np.floor(q / cell).astype(np.int64)
     keys -= keys.min(axis=0)
     span = keys.max(axis=0) + 1
     _, inverse = np.unique((keys[:, 0] * span[1] + keys[:, 1]) * span[2] + keys[:, 2], return_inverse=True)
     count = np.bincount(inverse).astype(np.float64)
     cell_v = np.stack([np.bincount(inverse, weights=v[:, a]) for a in range(3)], axis=1) / count[:, None]
+    return cell_v[inverse]
+
+
+def velocity_scales(q: np.ndarray, v: np.ndarray, cell: float) -> tuple[float, float, float]:
+    """RMS speeds [m/s] of the mean motion, the ``cell``-sized cells' motion less it, and each particle's against its cell."""
+    mean = v.mean(axis=0)
+    cell_v = cell_velocity(q, v, cell)
 
     def rms(x):
         return float(np.sqrt((x * x).sum(axis=-1).mean()))
 
-    return rms(mean), rms(cell_v[inverse] - mean), rms(v - cell_v[inverse])
+    return rms(mean), rms(cell_v - mean), rms(v - cell_v)
 
 
 def interior_density(q: np.ndarray, d: float, h: float) -> dict:

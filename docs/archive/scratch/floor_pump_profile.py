@@ -49,12 +49,7 @@ def main():
             frame()
             q = frame.states[0].particle_q.numpy().astype(np.float64)
             v = frame.states[0].particle_qd.numpy().astype(np.float64)
-            _, cell = np.unique(np.floor(q / (rest_column.CELL * d)).astype(np.int64), axis=0, return_inverse=True)
-            cell = cell.ravel()
-            mean = np.zeros((cell.max() + 1, 3))
-            np.add.at(mean, cell, v)
-            mean /= np.bincount(cell)[:, None]
-            fine2 = np.sum((v - mean[cell]) ** 2, axis=1)
+            fine2 = np.sum((v - rest_column.cell_velocity(q, v, rest_column.CELL * d)) ** 2, axis=1)
             layer = np.clip((q[:, 2] / d).astype(int), 0, layers - 1)
             wall = np.minimum(np.minimum(q[:, 0], side - q[:, 0]), np.minimum(q[:, 1], side - q[:, 1]))
             wall = np.clip((wall / d).astype(int), 0, walls - 1)
