@@ -49,10 +49,13 @@ corrected_still_columns() {
       2>&1 | grep -A1 '^device' | tail -1
   done
 }
-# every fluid test's CUDA variant (the image tests run under gltests: they need NVIDIA's GL)
+# every fluid test's CUDA variant (the image tests run under gltests: they need NVIDIA's GL); the output goes to
+# $out/cuda_tests_$1.txt as it runs, a line a test, so a run cut by the call's time limit still says which passed
 cuda_tests() {
-  python3 -m pytest -q -k cuda newton/tests/test_solver_xpbd_fluid.py \
-    $(ls newton/tests/test_fluid_*.py | grep -v test_fluid_render_gl.py) 2>&1 | tail -25
+  local log="$out/cuda_tests_$1.txt"
+  python3 -m pytest -v -rf -k cuda newton/tests/test_solver_xpbd_fluid.py \
+    $(ls newton/tests/test_fluid_*.py | grep -v test_fluid_render_gl.py) > "$log" 2>&1
+  tail -25 "$log"
 }
 # the 100k and 1M dam breaks (the sizes in $1) for each run ("tag kernel [damping]") of the rest of the arguments,
 # alternated; runs whose tag matches the pattern $3 have the patch $4 put on ($5 = on: an archived variant, by
@@ -593,7 +596,7 @@ for what in "$@"; do
           archived_patch off "$patch" ;;
         contact-moves-first-tests)
           archived_patch on "$patch"
-          cuda_tests
+          cuda_tests contact_moves_first
           archived_patch off "$patch" ;;
       esac ;;
     one-iteration-two-passes)
@@ -849,6 +852,6 @@ for what in "$@"; do
       # (docs/archive/performance_notebook.md, "Surface mesh"); needs usd-core (pxr), else add --no-usd for the timing alone
       python3 -m benchmarks usd_surface --frames 30 --json "$out/usd_surface_100k_${gpu}.json" 2>&1 | grep -v '^Module' ;;
     tests)
-      cuda_tests ;;
+      cuda_tests all ;;
   esac
 done

@@ -126,30 +126,36 @@ def run_benchmark(test, path, argv: list[str], device, keep: tuple[str, ...] = (
 
 
 def test_standing_wave_period(test, device):
-    # 20 particles per tank length, h / L = 0.5, 4 across (800 particles), a / h = 0.2, 32 substeps x 2
-    # iterations without the non-affine damping. Measured (CPU): period +0.8 % (linear theory 0.836 s), 50 %
-    # of the amplitude kept per period. At 8 substeps the first mode runs near the shallow-water period
-    # (-17 to -22 %) and at a / h = 0.1 the tank's own motion moves its crossings by a few percent, which is
-    # why this test takes 32 substeps and a / h = 0.2; the 90 % kept per period is not met (open).
+    # 20 particles per tank length, h / L = 0.5, 4 across (800 particles a tank), a / h = 0.2, 32 substeps x 2
+    # iterations without the non-affine damping, read over 16 starts a micrometre apart (isolated worlds of one
+    # model). One start's period scatters with its settled start by about 3 % (standard deviation): settled 1-3 s,
+    # one start read -1.7 to +7.7 %, so a single reading would fail the bound on a change that only moves the start.
+    # Measured (CPU, 2026-11-30): +3.4 +- 0.8 % (linear theory 0.836 s), 45 % of the amplitude kept per period
+    # (docs/validation/sloshing/sloshing_starts_16_amplitude_0.2_32x2_defaults_2026-11-30_cpu.json). At 8 substeps
+    # the first mode runs near the shallow-water period (-17 to -22 %) and at a / h = 0.1 the tank's own motion moves
+    # its crossings by a few percent, which is why this test takes 32 substeps and a / h = 0.2; the 90 % kept
+    # per period is not met (open).
     r = run_benchmark(
         test,
         SLOSHING,
         ["--substeps", "32", "--nonaffine-damping", "0", "--amplitude", "0.2", "--periods", "3", "--settle", "1"]
-        + ["--energy"],
+        + ["--starts", "16", "--energy"],
         device,
-        keep=("energy",),
+        keep=("energy", "per_start"),
     )
-    test.assertGreaterEqual(r["periods_measured"], 2.0, r)
+    test.assertEqual(r["period_error_unread"], 0, r)
+    test.assertGreaterEqual(min(start["periods_measured"] for start in r["per_start"]), 2.0, r)
     # half a period in, the mode's velocity field holds part of the energy the wave started with, not more
     # (measured 0.31 on the CPU: the rest went into particle-scale motion, docs/archive/validation_notebook.md)
     half = r["energy"][1]["mode_kinetic_J"] / r["wave_energy_J"]
     test.assertGreater(half, 0.05, r["energy"])
     test.assertLess(half, 1.05, r["energy"])
-    test.assertLess(abs(r["period_error"]), 0.05, r)
-    # the first extreme of the centre of mass: the mode was set up, not a tank that barely moves
-    test.assertGreater(r["first_extreme_m"], 0.5 * r["theory_first_extreme_m"], r)
-    test.assertLess(r["first_extreme_m"], 1.1 * r["theory_first_extreme_m"], r)
-    test.assertGreater(r["amplitude_kept_per_period"], 0.3, r)
+    test.assertLess(abs(r["period_error_mean"]), 0.05, r)
+    # the first extreme of the centre of mass: the mode was set up in every tank, not a tank that barely moves
+    for start in r["per_start"]:
+        test.assertGreater(start["first_extreme_m"], 0.5 * r["theory_first_extreme_m"], start)
+        test.assertLess(start["first_extreme_m"], 1.1 * r["theory_first_extreme_m"], start)
+    test.assertGreater(r["amplitude_kept_per_period_mean"], 0.3, r)
 
 
 def test_corrected_standing_wave_period(test, device):
