@@ -974,8 +974,8 @@ def test_density_subiterations_see_the_walls_move(test, device):
     test.assertEqual(stats["density_subiterations"], 4)
     q = sim.q()
     h = sim.solver.fluid_smoothing_length
-    # the floor's share of the density: the solver's ghost lattice, by distance from the floor
-    wall_rho, _ = wall_density_tables(D, h, MASS)
+    # the floor's share of the density: the solver's ghost lattice (of its density kernel), by distance from the floor
+    wall_rho, _ = wall_density_tables(D, h, MASS, kernel=sim.solver.fluid_density_kernel)
     wall = np.interp(np.clip(q[:, 2], 0.0, h), np.linspace(0.0, h, len(wall_rho)), wall_rho)
     compression = (sim.solver.fluid_density.numpy() + wall) / stats["rest_density"] - 1.0
     bottom = q[:, 2] < 0.85 * D
