@@ -6,8 +6,8 @@
 Runs ``sloshing.py`` (the period's error against linear theory, and the share of the amplitude kept per
 period), ``torricelli.py`` (the jet speed's error against sqrt(2 g H)) and ``hydrostatic_pressure.py``
 (the floor force against the weight, the largest layer's pressure error) for every substeps x iterations
-of ``--substeps`` x ``--iterations`` in each mode: the solver's defaults, without the non-affine damping,
-with the warm start, and ``fluid_density_kernel="one_kernel"`` with ``fluid_coarse_correction=0.5``, with and
+of ``--substeps`` x ``--iterations`` in each mode: the solver's defaults (``--density-kernel`` sets the kernel of
+the modes that name none), without the non-affine damping, with the warm start, and ``fluid_density_kernel="one_kernel"`` with ``fluid_coarse_correction=0.5``, with and
 without the damping. ``--size small`` is the CPU size (800, 2,400 and 1,024 particles), ``--size large``
 the GPU one (about 100k, 150k and 100k). Prints a table, writes every run's record to ``--json`` and, with
 ``--plot``, one panel per error against ms per frame (the frames alone, read-backs left out, no graph
@@ -27,11 +27,15 @@ import json
 
 import warp as wp
 
+from newton._src.solvers.xpbd.fluid.calibration import DENSITY_KERNELS
+from newton._src.solvers.xpbd.fluid.config import FluidConfig
 from newton.examples.fluid.progress import track
 
 from . import hydrostatic_pressure, sloshing, torricelli
 from .run_record import write_record
 
+#: the kernel of the modes that name none, unless ``--density-kernel`` is given
+DEFAULT_DENSITY_KERNEL = FluidConfig.fluid_density_kernel
 PAIR = ["--density-kernel", "one_kernel", "--coarse-correction", "0.5"]
 MODES = {
     "default": [],
@@ -112,6 +116,13 @@ def main(argv=None):
     parser.add_argument("--iterations", type=int, nargs="+", default=[2, 4])
     parser.add_argument("--modes", nargs="+", default=list(MODES), choices=list(MODES))
     parser.add_argument("--problems", nargs="+", default=["sloshing", "torricelli", "pressure"])
+    parser.add_argument(
+        "--density-kernel",
+        choices=DENSITY_KERNELS,
+        default=None,
+        help="the density kernel of the modes that name none (unset: the solver's default; charts before "
+        "2026-11-30 were drawn with poly6, the default then)",
+    )
     parser.add_argument("--device", default=None)
     parser.add_argument("--json", default=None)
     parser.add_argument("--plot", default=None)
@@ -139,10 +150,21 @@ def main(argv=None):
         f"{'problem':<11}{'mode':<37}{'particles':>10}{'sub x it':>9}{'ms/frame':>10}{'error':>9}{'kept/T':>8}{'mean|e|':>9}"
     )
     for problem, mode, substeps, iterations in track(grid, "accuracy_chart", unit="run"):
-        extra = [*SIZES[args.size][problem], *MODES[mode], "--substeps", str(substeps), "--iterations", str(iterations)]
+        flags = MODES[mode]
+        if args.density_kernel is not None and "--density-kernel" not in flags:
+            flags = [*flags, "--density-kernel", args.density_kernel]
+        kernel = flags[flags.index("--density-kernel") + 1] if "--density-kernel" in flags else DEFAULT_DENSITY_KERNEL
+        extra = [
+            *SIZES[args.size][problem],
+            *flags,
+            "--substeps",
+            str(substeps),
+            "--iterations",
+            str(iterations),
+        ]
         r = measure(problem, extra, device)
         r = {k: v for k, v in r.items() if not k.startswith(("signal", "speed_rows"))}
-        row = {"problem": problem, "mode": mode, **r, **error(problem, r)}
+        row = {"problem": problem, "mode": mode, "density_kernel": kernel, **r, **error(problem, r)}
         rows.append(row)
         e = row.get("period_error", row.get("jet_speed_error", row.get("floor_force_error")))
         kept = row.get("amplitude_kept_per_period", float("nan"))

@@ -7,6 +7,7 @@ Small scenes (CPU always, CUDA when present); the measured boundaries are in doc
 (``benchmarks/stability_map.py``).
 """
 
+import re
 import time
 import unittest
 import warnings
@@ -179,7 +180,10 @@ def test_packed_at_half_spacing_expands_in_tank(test, device):
     # the over-packed start is reported although it was relaxed long ago: its count was kept on the device
     test.assertEqual(stats["overpacked_placed"], 512)
     test.assertEqual(stats["compressed_particle_substeps"], 0)
-    test.assertTrue(any("placed more than 10 % above rest density (peak 6" in m for m in messages), messages)
+    # with its peak: several times the rest density (616 % read with poly6, 502 % with the one kernel, CPU)
+    peaks = [re.search(r"placed more than 10 % above rest density \(peak (\d+) %", m) for m in messages]
+    test.assertEqual(sum(p is not None for p in peaks), 1, messages)
+    test.assertGreater(max(int(p.group(1)) for p in peaks if p), 400)
     test.assertFalse(any("substep is too long" in m for m in messages), messages)
     # and once: the next report has nothing new
     stats, messages = report(sim)

@@ -353,11 +353,11 @@ _FLUID_DOC = """
                 measured choice. Defaults to 0.
             fluid_coarse_cell: Edge of the coarse correction's cells [rest distances], in [1, 16], set at
                 construction. Defaults to 3.
-            fluid_density_kernel: The density constraint's kernel (str), set at construction: ``"poly6"`` sums the
-                poly6 kernel and moves along the spiky kernel's gradient (Macklin & Müller 2013); ``"one_kernel"``
+            fluid_density_kernel: The density constraint's kernel (str), set at construction: ``"one_kernel"``
                 sums ``(1 - r/h)^2.5``, normalised so the rest lattice reads ``m / d^3``, and moves along its own
-                gradient: still water churns less, and with ``fluid_coarse_correction`` it rests. Defaults to
-                ``"poly6"``.
+                gradient: still water comes to rest (a deep column once its start's ring has died down);
+                ``"poly6"`` sums the poly6 kernel and moves along the spiky kernel's gradient (Macklin & Müller
+                2013), a few percent faster, its deep still water never at rest. Defaults to ``"one_kernel"``.
             fluid_compression_damping: Share of the compression a substep's motion adds that its density passes
                 also remove [dimensionless], in [0, 0.4], set at construction; 0 is off. Damps a deep column's ring
                 as strongly as the passes act on it; a load at rest is held as before. Defaults to 0.

@@ -128,7 +128,7 @@ class FluidConfig:
     fluid_relax_overpacked: bool = True
     fluid_coarse_correction: float = 0.0
     fluid_coarse_cell: float = DEFAULT_COARSE_CELL
-    fluid_density_kernel: str = "poly6"
+    fluid_density_kernel: str = "one_kernel"
     fluid_compression_damping: float = 0.0
 
     #: parameters that may change after construction (they live on the device)
