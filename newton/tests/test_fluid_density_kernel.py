@@ -124,11 +124,11 @@ def test_one_kernel_relaxes_a_packed_start(test, device):
     test.assertIn("within 1 % of rest density", named[0])
 
 
-def still_column_motion(device, **solver_kwargs) -> dict:
-    """A 6 x 6 x 24 column settled 2 s, then measured 3 s as ``python -m benchmarks rest_column`` measures."""
+def still_column_motion(device, settle: float = 2.0, **solver_kwargs) -> dict:
+    """A 6 x 6 x 24 column settled ``settle`` [s], then measured 3 s as ``python -m benchmarks rest_column`` measures."""
     layers = 24
     sim = column(device, n=6, layers=layers, **solver_kwargs)
-    sim.step(120)
+    sim.step(round(60 * settle))
     settled = sim.q().astype(np.float64)
     rms, fastest = [], 0.0
     for _ in range(180):
@@ -150,6 +150,17 @@ def still_column_motion(device, **solver_kwargs) -> dict:
     }
 
 
+def assert_rests(test, motion: dict, max_speed: float = 0.02, max_moved: float = 0.5):
+    """Issue #23 item 1's bounds on :func:`still_column_motion`'s ``motion``; ``max_speed`` [m/s] and ``max_moved``
+    [spacings], one particle's, may be set above the issue's where draws scatter."""
+    test.assertTrue(motion["finite"])
+    test.assertLess(motion["rms"], 0.005)
+    test.assertLess(motion["max_speed"], max_speed)
+    test.assertLess(motion["mean_moved"], 0.05)
+    test.assertLess(motion["max_moved"], max_moved)
+    test.assertLess(motion["top_span"], 0.5)
+
+
 def test_one_kernel_with_the_correction_rests(test, device):
     # issue #23 item 1's bounds on a 6 x 6 x 24 column (RMS 0.005 m/s, max 0.02 m/s, displacement mean 0.05
     # and max 0.5 spacings, top layer 0.5 spacings), met with the one kernel and the coarse correction (CPU, its
@@ -158,17 +169,26 @@ def test_one_kernel_with_the_correction_rests(test, device):
     # order changes it from run to run: on an H200, over six runs before the surface's placement, 0.24-0.50
     # spacings (and 0.008-0.017 m/s), so its bound leaves room above the issue's
     calm = still_column_motion(device, fluid_density_kernel="one_kernel", fluid_coarse_correction=0.5)
-    test.assertTrue(calm["finite"])
-    test.assertLess(calm["rms"], 0.005)
-    test.assertLess(calm["max_speed"], 0.02)
-    test.assertLess(calm["mean_moved"], 0.05)
-    test.assertLess(calm["max_moved"], 0.6)
-    test.assertLess(calm["top_span"], 0.5)
+    assert_rests(test, calm, max_moved=0.6)
     test.assertLess(calm["max_compression"], 0.002)
     # with poly6 and the correction its particles rearrange (CPU: max 0.053 m/s, displacement 0.126 / 0.78)
     churn = still_column_motion(device, fluid_density_kernel="poly6", fluid_coarse_correction=0.5)
     test.assertGreater(churn["max_speed"], 0.03)
     test.assertGreater(churn["mean_moved"], 0.05)
+
+
+def test_default_column_rests_in_the_window(test, device):
+    # issue #23 item 1's window (settled 2 s, measured 3 s) on a 6 x 6 x 24 column at the defaults, the one kernel
+    # (CPU: 0.0004 m/s RMS, max 0.013 m/s, displacement 0.008 / 0.22 spacings, top layer 0.21 spacings; over
+    # 7-10 s one top particle moved at 0.045 m/s). The largest speed is one particle's and changes from draw to draw,
+    # so it is held above the draws; the rest to the issue's bounds
+    calm = still_column_motion(device)
+    assert_rests(test, calm, max_speed=0.06)
+    # poly6, the default until 2026-11-30, pumps the loaded packing (CPU: 0.0073 m/s RMS, displacement 0.061 /
+    # 0.72 spacings)
+    churn = still_column_motion(device, fluid_density_kernel="poly6")
+    test.assertGreater(churn["rms"], 5.0 * calm["rms"])
+    test.assertGreater(churn["mean_moved"], 3.0 * calm["mean_moved"])
 
 
 class TestFluidDensityKernel(unittest.TestCase):
