@@ -65,7 +65,7 @@ class Example(FluidExample):
         self.model = builder.finalize()
         self.model.soft_contact_mu = 0.0
         self.solver = newton.solvers.SolverXPBD(
-            self.model, iterations=2, fluid_rest_distance=d, fluid_viscosity=0.1, fluid_cohesion=0.2
+            self.model, iterations=2, fluid_rest_distance=d, fluid_viscosity=0.02, fluid_cohesion=0.2
         )
         self.setup_simulation()
         self.viewer.set_camera(wp.vec3(0.0, -1.9, 1.1), pitch=-28.0, yaw=90.0)

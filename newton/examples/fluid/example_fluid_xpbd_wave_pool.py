@@ -144,7 +144,6 @@ class Example(FluidExample):
             self.boxes.append(body)
         self.model = builder.finalize()
         self.model.soft_contact_mu = 0.0
-        self.model.particle_max_velocity = 0.25 * d / self.sim_dt
         # no non-affine damping: the tests' waves (4,500 particles) are a few spacings high, close to the
         # particle scale the damping is meant for, and it took their energy (the 800 kg/m^3 box heaved 1.0
         # spacing in the last two periods at the default 0.1, 1.8 without it)
