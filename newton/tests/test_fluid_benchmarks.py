@@ -146,15 +146,20 @@ def test_every_case_writes_the_same_record(test, device):
 
 
 @contextlib.contextmanager
-def rest_column_module(test):
-    """``benchmarks.rest_column`` imported from the source checkout (the test skips without one)."""
+def benchmark_module(test, name: str):
+    """``benchmarks.<name>`` imported from the source checkout (the test skips without one)."""
     if not HAS_BENCHMARKS:
         test.skipTest("benchmarks/ is part of the source checkout, not of the installed wheel")
     sys.path.insert(0, str(ROOT))
     try:
-        yield importlib.import_module("benchmarks.rest_column")
+        yield importlib.import_module(f"benchmarks.{name}")
     finally:
         sys.path.remove(str(ROOT))
+
+
+def rest_column_module(test):
+    """``benchmarks.rest_column`` imported from the source checkout (the test skips without one)."""
+    return benchmark_module(test, "rest_column")
 
 
 def test_rest_column_splits_speed_by_scale(test, device):
@@ -238,6 +243,37 @@ def test_rest_column_windows_read_as_separate_runs(test, device):
         with contextlib.redirect_stderr(err), test.assertRaises(SystemExit):
             rest_column.main([*small, "--settle", "0.1", "0.12"])
         test.assertIn("--settle 0.1 0.12", err.getvalue())
+
+
+def test_floating_box_reads_its_rest(test, device):
+    # floating_box's issue #23 item 2 readings: the tilt from the pose, the box's start moved off centre per start,
+    # and per run the four readings and whether all are within the issue's bounds
+    import numpy as np  # noqa: PLC0415
+    import warp as wp  # noqa: PLC0415
+
+    with benchmark_module(test, "floating_box") as floating_box:
+        q = wp.quat_from_axis_angle(wp.vec3(1.0, 0.0, 0.0), math.radians(10.0))
+        test.assertAlmostEqual(floating_box.tilt_deg(np.array([0.0, 0.0, 0.0, *q])), 10.0, places=3)
+        test.assertAlmostEqual(floating_box.tilt_deg(np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0])), 0.0)
+        centred = floating_box.build(0.1, 500.0, device, depth=0.2).body_q.numpy()[0]
+        moved = floating_box.build(0.1, 500.0, device, depth=0.2, box_x=0.02).body_q.numpy()[0]
+        test.assertAlmostEqual(float(moved[0] - centred[0]), 0.02, places=6)
+        with tempfile.TemporaryDirectory() as tmp:
+            path = os.path.join(tmp, "box.json")
+            argv = ["--spacings", "0.1", "--densities", "500", "--pool-half", "0.5", "--depth", "0.2"]
+            argv += ["--seconds", "0.1", "--average", "0.05", "--starts", "2", "--offset", "0.01"]
+            with contextlib.redirect_stdout(io.StringIO()) as out:
+                floating_box.main([*argv, "--device", "cpu", "--json", path])
+            with open(path) as f:
+                record = json.load(f)
+        test.assertEqual([r["box_start_x_m"] for r in record["rows"]], [0.0, 0.01])
+        for row in record["rows"]:
+            readings = [row[k] for k in ("tilt_max_deg", "angular_speed_rad_s", "vertical_speed_m_s")]
+            test.assertTrue(all(math.isfinite(v) and v >= 0.0 for v in readings), row)
+            within = all(row[k] < b for k, b in floating_box.REST_BOUNDS.items() if k != "draft_error")
+            within = within and abs(row["draft_relative_error"]) < floating_box.REST_BOUNDS["draft_error"]
+            test.assertEqual(row["rest_bounds_met"], within, row)
+        test.assertIn("of 2 runs", out.getvalue())
 
 
 class TestFluidBenchmarks(unittest.TestCase):
