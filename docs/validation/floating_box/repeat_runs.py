@@ -23,6 +23,7 @@ import numpy as np
 import warp as wp
 
 sys.path.insert(0, ".")
+from benchmarks.floating_box import REST_BOUNDS  # noqa: E402
 from newton.examples.fluid.progress import track  # noqa: E402
 from newton.tests.test_fluid_still_water import BOX_SPACING, floating_box  # noqa: E402
 
@@ -74,7 +75,10 @@ def main():
         t = np.array([r["tilt_deg"] for r in rows])
         s = np.array([r["spin_rad_s"] for r in rows])
         met = sum(
-            r["tilt_deg"] < 1.0 and r["spin_rad_s"] < 0.02 and r["sink_m_s"] < 0.005 and abs(r["draft"] - 1.0) < 0.05
+            r["tilt_deg"] < REST_BOUNDS["tilt_max_deg"]
+            and r["spin_rad_s"] < REST_BOUNDS["angular_speed_rad_s"]
+            and r["sink_m_s"] < REST_BOUNDS["vertical_speed_m_s"]
+            and abs(r["draft"] - 1.0) < REST_BOUNDS["draft_error"]
             for r in rows
         )
         print(
