@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One measuring session on a CUDA machine: the numbers in docs/archive/performance_notebook.md come from here.
-# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|coarse-damping|damping-interval|damping-interval-box|damping-interval-wave|damping-interval-pool|pool-settle|pool-pump|pool-one-kernel|box-one-kernel|box-starts|default-kernel|compression-damping|compression-damping-cost|one-kernel-inverse-h|tolerance-even-stops|subpasses|subpasses-cost|constraint-moves-pool|constraint-moves-cost|constraint-moves-whole|contact-moves-first-cost|contact-moves-first-pool|contact-moves-first-tests|one-iteration-two-passes|odd-count-step|odd-count-pool|worlds|ncu|ncu-kernels|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|exact-i2|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
+# Usage: bash benchmarks/gpu_session.sh OUTDIR [bench|still|modes|placement|placement-graph|walls|collision|lean|kernel-shape|coarse-density|coarse-correction|coarse-correction-shape|coarse-correction-still|density-kernel|density-kernel-still|coarse-cost|coarse-sweeps|box-runs|waves|wave-starts|coarse-surface|coarse-damping|damping-interval|damping-interval-box|damping-interval-wave|damping-interval-pool|pool-settle|pool-pump|pool-one-kernel|box-one-kernel|box-starts|default-kernel|compression-damping|compression-damping-cost|one-kernel-inverse-h|tolerance-even-stops|subpasses|subpasses-cost|constraint-moves-pool|constraint-moves-cost|constraint-moves-whole|contact-moves-first-cost|contact-moves-first-pool|contact-moves-first-tests|one-iteration-two-passes|odd-count-step|odd-count-pool|worlds|ncu|ncu-kernels|variants|tolerance|tolerance-small|tolerance-chart|tolerance-i2|accuracy|accuracy-causes|exact|exact-i2|chart-default|chart-default-8x4|wave-default-kernel|foam-clamp|jet|surge|diffuse|render|usd|gallery|gltests|tests]...
 # tests and usd need usd-core (pxr) beside newton and warp; the rest runs without it
 set -u
 out=${1:?output folder}; shift
@@ -82,7 +82,7 @@ dam_break_patch_runs() {
 # modes measuring the defaults of today; every other mode was written while poly6 was the default density kernel (to
 # 2026-11-30) and runs the tree with that default, so its records repeat: the change that made the one kernel the
 # default is taken off for it (docs/archive/patches/one_kernel_default.patch) and put back after
-current_modes=" default-kernel tests gltests "
+current_modes=" default-kernel chart-default chart-default-8x4 wave-default-kernel foam-clamp gallery tests gltests "
 default_patch=docs/archive/patches/one_kernel_default.patch
 for what in "$@"; do
   poly6_default=0
@@ -738,6 +738,45 @@ for what in "$@"; do
         python3 -W ignore -m benchmarks accuracy_chart --size large --device cuda:0 --iterations 2 --problems "$problem" \
           --json "$out/accuracy_chart_i2_${problem}_${gpu}.json" 2>&1 | grep -v '^Module'
       done ;;
+    chart-default)
+      # the chart of exact-i2 at today's defaults (the one kernel since 2026-11-30), every mode, one session
+      # (docs/validation.rst, "Exact answers"); EXACT_PROBLEMS picks the problems, a command's time being bounded
+      for problem in ${EXACT_PROBLEMS:-sloshing torricelli pressure}; do
+        python3 -W ignore -m benchmarks accuracy_chart --size large --device cuda:0 --iterations 2 --problems "$problem" \
+          --json "$out/accuracy_chart_i2_default_kernel_${problem}_${gpu}.json" 2>&1 | grep -v '^Module'
+      done ;;
+    chart-default-8x4)
+      # the defaults at 8 x 4 beside chart-default (docs/validation.rst, "Which setting for which need")
+      python3 -W ignore -m benchmarks accuracy_chart --size large --device cuda:0 --iterations 4 --substeps 8 \
+        --modes default --json "$out/accuracy_chart_i4_8_default_kernel_${gpu}.json" 2>&1 | grep -v '^Module' ;;
+    wave-default-kernel)
+      # the standing wave with the one kernel (the default since 2026-11-30) against poly6 and with the compression
+      # damping, over resolutions (starts a hair apart: 64 at 20 per L, 16 at 40, 4 at 80, 1 at 160), 8 x 2; at 160
+      # per L also settled 6 s and at 8 x 4 (docs/validation.rst, "Standing wave")
+      # WAVE_SIZES picks the resolutions (all four by default), a command's time being bounded
+      for n in ${WAVE_SIZES:-20 40 80 160}; do
+        starts=$(( n == 20 ? 64 : n == 40 ? 16 : n == 80 ? 4 : 1 ))
+        runs=("default|" "poly6|--density-kernel poly6" "compression_damping_0.4|--compression-damping 0.4")
+        [ $n = 160 ] && runs+=("settle_6|--settle 6" "8x4|--iterations 4" "poly6_settle_6|--density-kernel poly6 --settle 6")
+        for run in "${runs[@]}"; do
+          tag=${run%%|*}; flags=${run#*|}; echo "== $n per L, $starts starts, $tag"
+          python3 -m benchmarks sloshing --device cuda:0 --per-length $n --depth-particles 8 --starts $starts $flags \
+            --json "$out/sloshing_default_kernel_n${n}_${tag}_${gpu}.json" 2>&1 | grep -A2 '^device' | tail -1
+        done
+      done ;;
+    foam-clamp)
+      # fluid_xpbd_foam with and without its particle speed clamp (the example's until 2026-11-30), at its test's
+      # count and its default one, in the basin as it was (walls 0.6 m, water 0.06 m deep), as tried and as it is
+      # (1.5 m, 0.12 m): where spray and water go (docs/archive/validation_notebook.md, "The foam example's clamp");
+      # one JSON line a run
+      for run in "4000 --clamp --wall-height 0.6 --pool-depth 0.06" "4000 --wall-height 0.6 --pool-depth 0.06" \
+        "60000 --clamp --wall-height 0.6 --pool-depth 0.06" "60000 --wall-height 0.6 --pool-depth 0.06" \
+        "60000 --wall-height 1.0 --pool-depth 0.06" "60000 --wall-height 1.5 --pool-depth 0.06" \
+        "60000 --wall-height 1.0 --pool-depth 0.12" "60000 --wall-height 1.0 --pool-depth 0.2" "4000" "60000"; do
+        set -- $run
+        python3 -W ignore docs/archive/scratch/foam_clamp.py --device cuda:0 --particle-count $1 --frames 120 "${@:2}" \
+          2>&1 | tail -1 | tee -a "$out/foam_clamp_${gpu}.jsonl"
+      done ;;
     waves)
       # the standing wave at the smoothing length and damping that keep it, against the defaults, and what the
       # same keywords do to the 100k dam break and the 100k pool (docs/validation.rst, "Standing wave")
@@ -859,10 +898,11 @@ for what in "$@"; do
         "$out"/batched_multiworld_1000_${gpu}.json "$out"/batched_multiworld_4000_${gpu}.json \
         "$out"/batched_multiworld_4000_4096_${gpu}.json --plot "$out/batched_worlds.png" ;;
     gallery)
-      # every example captured at its default particle count (1280x720, 30 fps from 60 Hz), its last frame kept:
+      # every example at today's defaults, captured at its default particle count (1280x720, 30 fps from 60 Hz), its
+      # last frame kept:
       # the stills of docs/gallery.rst and the capture throughput of docs/archive/performance_notebook.md.
       # GALLERY_ONLY="name ..." limits it to some examples (in that order).
-      specs=("dam_break 60" "foam 36" "multiworld 120" "interactive_tank 150" "multi_fluid_tank 300"
+      specs=("dam_break 60" "foam 27" "multiworld 120" "interactive_tank 150" "multi_fluid_tank 300"
              "sdf_container 45" "wave_pool 240" "cup_transfer 270" "archimedes_screw 270")
       for only in ${GALLERY_ONLY:-}; do for spec in "${specs[@]}"; do [[ $spec == "$only "* ]] && picked+=("$spec"); done; done
       for spec in "${picked[@]:-${specs[@]}}"; do
