@@ -40,6 +40,8 @@ def run_example(test, device, name):
     args = parser.parse_args([*args_list, "--viewer", "null", "--test", "--num-frames", str(frames)])
     with wp.ScopedDevice(device):
         example = module.Example(newton.viewer.ViewerNull(num_frames=frames), args)
+        # issue #23 item 2: no example holds its fluid calm with a particle speed clamp
+        test.assertEqual(example.model.particle_max_velocity, newton.ModelBuilder().particle_max_velocity, name)
         newton.examples.run(example, args)  # runs test_final and the finiteness checks
 
 
