@@ -157,16 +157,11 @@ def benchmark_module(test, name: str):
         sys.path.remove(str(ROOT))
 
 
-def rest_column_module(test):
-    """``benchmarks.rest_column`` imported from the source checkout (the test skips without one)."""
-    return benchmark_module(test, "rest_column")
-
-
 def test_rest_column_splits_speed_by_scale(test, device):
     # rest_column's split of the RMS speed: a lattice of 8^3 particles in cells of 4 x 4 x 4
     import numpy as np  # noqa: PLC0415
 
-    with rest_column_module(test) as rest_column:
+    with benchmark_module(test, "rest_column") as rest_column:
         g = (np.arange(8) + 0.5) * 0.1
         q = np.stack(np.meshgrid(g, g, g, indexing="ij"), axis=-1).reshape(-1, 3)
         cell = 0.4
@@ -187,7 +182,7 @@ def test_rest_column_reads_the_surface(test, device):
     # the surface's span: the top particle of each column of cells two spacings wide, whichever particles they are
     import numpy as np  # noqa: PLC0415
 
-    with rest_column_module(test) as rest_column:
+    with benchmark_module(test, "rest_column") as rest_column:
         span = rest_column.surface_span
         d = 0.05
         g = (np.arange(6) + 0.5) * d
@@ -210,7 +205,7 @@ def test_rest_column_offset_moves_the_start(test, device):
     # rest_column --offset: another draw of the same still water, the column's start moved along x alone
     import numpy as np  # noqa: PLC0415
 
-    with rest_column_module(test) as rest_column:
+    with benchmark_module(test, "rest_column") as rest_column:
         at_rest = rest_column.build(3, 2, device).particle_q.numpy()
         moved = rest_column.build(3, 2, device, offset=0.02).particle_q.numpy()
         np.testing.assert_allclose(moved[:, 0] - at_rest[:, 0], 0.02 * rest_column.SPACING, rtol=1e-4)
@@ -221,7 +216,7 @@ def test_rest_column_offset_moves_the_start(test, device):
 def test_rest_column_windows_read_as_separate_runs(test, device):
     # rest_column --settle S1 S2: one run measured over each window; measuring leaves the state as it is, so the
     # second window reads bitwise what a run measured from S2 alone reads (CPU)
-    with rest_column_module(test) as rest_column:
+    with benchmark_module(test, "rest_column") as rest_column:
         small = ["--n", "3", "--layers", "4", "--measure", "0.05", "--device", "cpu"]
         with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
             both = rest_column.main([*small, "--settle", "0.05", "0.1"])
